@@ -1,0 +1,1 @@
+"""Simulation: MRP algebra, rigid-body dynamics, fault sampling, sensors and the rollout loop."""
