@@ -24,8 +24,9 @@ class UnknownNameError(UsageError, KeyError):
     def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
         valid = sorted(valid)
         close = difflib.get_close_matches(name, valid, n=1)
-        hint = f"; did you mean `{close[0]}`?" if close else ""
-        super().__init__(f"{kind} `{name}` doesn't exist{hint} Valid: {', '.join(valid)}")
+        hint = f"; did you mean `{close[0]}`?" if close else "."
+        listing = ", ".join(valid) or "(none yet)"
+        super().__init__(f"{kind} `{name}` doesn't exist{hint} Valid: {listing}")
         self.kind, self.name, self.valid = kind, name, valid
 
     def __str__(self) -> str:  # KeyError would repr() the message

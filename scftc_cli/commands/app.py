@@ -7,6 +7,7 @@ import typer
 from scftc_cli import BENCHMARK_VERSION, __version__
 from scftc_cli.commands.eval import eval_command
 from scftc_cli.commands.listing import list_command
+from scftc_cli.commands.train import train_command
 
 app = typer.Typer(
     name="scftc",
@@ -18,6 +19,7 @@ app = typer.Typer(
 )
 app.command("eval")(eval_command)
 app.command("list")(list_command)
+app.command("train")(train_command)
 
 
 def main() -> None:
