@@ -10,11 +10,12 @@ from scftc_cli.errors import UnknownNameError, UsageError
 from scftc_cli.records import CellResult, EvalResult
 from scftc_cli.scoring import score_cell
 from scftc_cli.sim.dynamics import NumpyPlant
+from scftc_cli.sim.fast import FastPlant
 from scftc_cli.sim.faults import draw_episodes
 from scftc_cli.sim.rollout import PlantFactory, rollout
 from scftc_cli.spec import SPEC
 
-BACKENDS = ("numpy", "basilisk")
+BACKENDS = ("numpy", "reference", "basilisk")
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,8 @@ def select_cells(split: str, fault_class: str | None, sensor: str | None) -> lis
 def plant_factory(backend: str) -> PlantFactory:
     """The plant of ``backend``; Basilisk is imported only when asked for."""
     if backend == "numpy":
+        return FastPlant
+    if backend == "reference":
         return NumpyPlant
     if backend == "basilisk":
         from scftc_cli.sim.basilisk import BasiliskPlant
@@ -63,7 +66,7 @@ def evaluate_cell(
     *,
     n_faults: int = SPEC.n_faults,
     n_seeds: int = SPEC.n_seeds,
-    plant: PlantFactory = NumpyPlant,
+    plant: PlantFactory = FastPlant,
     salt: bytes = b"",
     on_step: Callable[[int], None] | None = None,
 ) -> CellResult:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scftc_cli.sim.mrp import shadow_switch
+from scftc_cli.sim.mrp import dot, norm2, shadow_switch
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -29,8 +29,7 @@ def derivatives(
     sigma: np.ndarray, omega_rad_s: np.ndarray, torque_nm: np.ndarray, inertia_kgm2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """``sigma_dot = 1/4 [(1-|s|^2) w + 2 s x w + 2 s (s.w)]`` and ``I w_dot = tau - w x I w``."""
-    s2 = np.einsum("ij,ij->i", sigma, sigma)[:, None]
-    sw = np.einsum("ij,ij->i", sigma, omega_rad_s)[:, None]
+    s2, sw = norm2(sigma)[:, None], dot(sigma, omega_rad_s)[:, None]
     sigma_dot = 0.25 * ((1.0 - s2) * omega_rad_s + 2.0 * cross(sigma, omega_rad_s) + 2.0 * sigma * sw)
     omega_dot = (torque_nm - cross(omega_rad_s, inertia_kgm2 * omega_rad_s)) / inertia_kgm2
     return sigma_dot, omega_dot
