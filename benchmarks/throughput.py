@@ -58,7 +58,9 @@ def env_steps_per_s(controller: str, n: int, plant, repeats: int) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/throughput.json"))
     parser.add_argument("--quick", action="store_true", help="fewer repeats, skip batch 100 000")
     args = parser.parse_args()
@@ -70,10 +72,18 @@ def main() -> None:
     for n in batches:
         fast = env_steps_per_s("pd", n, FastPlant, repeats)
         ref = env_steps_per_s("pd", n, NumpyPlant, 1 if n >= 10_000 else repeats)
-        rows.append({"batch": n, "fast_env_steps_per_s": fast, "reference_env_steps_per_s": ref,
-                     "speedup": fast / ref})
-        print(f"pd batch {n:>7}: fast {fast / 1e6:8.2f} M env-steps/s | numpy reference "
-              f"{ref / 1e6:6.2f} M | x{fast / ref:5.1f}")
+        rows.append(
+            {
+                "batch": n,
+                "fast_env_steps_per_s": fast,
+                "reference_env_steps_per_s": ref,
+                "speedup": fast / ref,
+            }
+        )
+        print(
+            f"pd batch {n:>7}: fast {fast / 1e6:8.2f} M env-steps/s | numpy reference "
+            f"{ref / 1e6:6.2f} M | x{fast / ref:5.1f}"
+        )
     results["pd_throughput"] = rows
 
     have_rma_dob = "rma_dob" in registry()
@@ -82,10 +92,14 @@ def main() -> None:
         t_pd = best_time(lambda: rollout(make_controller("pd"), episodes), repeats)
         t_rma = best_time(lambda: rollout(make_controller("rma_dob"), episodes), repeats)
         results["rma_dob_overhead"] = {
-            "batch": 500, "pd_ms_per_step": 1e3 * t_pd / STEPS, "rma_dob_ms_per_step": 1e3 * t_rma / STEPS,
+            "batch": 500,
+            "pd_ms_per_step": 1e3 * t_pd / STEPS,
+            "rma_dob_ms_per_step": 1e3 * t_rma / STEPS,
             "overhead_ms_per_step": 1e3 * (t_rma - t_pd) / STEPS,
         }
-        print(f"rma_dob at batch 500: {1e3 * t_rma / STEPS:.3f} ms/step vs pd {1e3 * t_pd / STEPS:.3f} ms/step")
+        print(
+            f"rma_dob at batch 500: {1e3 * t_rma / STEPS:.3f} ms/step vs pd {1e3 * t_pd / STEPS:.3f} ms/step"
+        )
 
     cells = [Cell("test", c) for c in SPEC.fault_classes]
     for name in ("pd", "rma_dob") if have_rma_dob else ("pd",):
@@ -104,10 +118,17 @@ def main() -> None:
         t_bsk = best_time(lambda: evaluate_cell(make_controller("pd"), cell, plant=basilisk), 1)
         n = SPEC.n_faults * SPEC.n_seeds
         results["basilisk"] = {
-            "cell_episodes": n, "fast_s": t_fast, "basilisk_s": t_bsk, "ratio": t_bsk / t_fast,
-            "fast_env_steps_per_s": n * STEPS / t_fast, "basilisk_env_steps_per_s": n * STEPS / t_bsk,
+            "cell_episodes": n,
+            "fast_s": t_fast,
+            "basilisk_s": t_bsk,
+            "ratio": t_bsk / t_fast,
+            "fast_env_steps_per_s": n * STEPS / t_fast,
+            "basilisk_env_steps_per_s": n * STEPS / t_bsk,
         }
-        print(f"one 500-episode pd cell: fast {t_fast:.3f} s, Basilisk {t_bsk:.1f} s, ratio x{t_bsk / t_fast:.0f}")
+        print(
+            f"one 500-episode pd cell: fast {t_fast:.3f} s, Basilisk {t_bsk:.1f} s, "
+            f"ratio x{t_bsk / t_fast:.0f}"
+        )
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
