@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from scftc_cli import BENCHMARK_VERSION, __version__
+from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
 from scftc_cli.commands.listing import list_command
 from scftc_cli.commands.train import train_command
@@ -20,6 +21,7 @@ app = typer.Typer(
 app.command("eval")(eval_command)
 app.command("list")(list_command)
 app.command("train")(train_command)
+app.command("crosscheck")(crosscheck_command)
 
 
 def main() -> None:

@@ -10,6 +10,7 @@ from typing import Any
 import typer
 from pydantic import ValidationError
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -35,15 +36,17 @@ def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
         try:
             return fn(*args, **kwargs)
         except UsageError as err:
-            stderr.print(f"[red]error:[/red] {err}", highlight=False, soft_wrap=True)
+            stderr.print(f"[red]error:[/red] {escape(str(err))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
         except ValidationError as err:
             for e in err.errors():
                 where = ".".join(str(p) for p in e["loc"]) or "input"
-                stderr.print(f"[red]error:[/red] {where}: {e['msg']}", highlight=False, soft_wrap=True)
+                stderr.print(
+                    f"[red]error:[/red] {escape(where)}: {escape(e['msg'])}", highlight=False, soft_wrap=True
+                )
             raise typer.Exit(1) from None
         except ScftcError as err:
-            stderr.print(f"[red]error:[/red] {err}", highlight=False, soft_wrap=True)
+            stderr.print(f"[red]error:[/red] {escape(str(err))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
 
     return wrapper

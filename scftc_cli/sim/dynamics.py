@@ -8,6 +8,8 @@ All arrays are batch-first: ``sigma``, ``omega_rad_s``, ``torque_nm``, ``inertia
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from scftc_cli.sim.mrp import dot, norm2, shadow_switch
@@ -53,10 +55,31 @@ def rk4_step(
     return shadow_switch(sigma_next), omega_next
 
 
-class NumpyPlant:
-    """The default backend: every episode of a batch stepped as one array operation."""
+class Plant(ABC):
+    """A backend: the true state of a batch of episodes, advanced one control step at a time.
 
-    name = "numpy"
+    Built from ``sigma0``, ``omega0_rad_s``, ``inertia_kgm2`` (all ``(n, 3)``) and ``dt_s``.
+    """
+
+    name: str
+
+    @abstractmethod
+    def step(self, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Advance one control step under ``torque_nm`` ``(n, 3)``; return the new true state."""
+
+    def actuate(
+        self, command: np.ndarray, gain: np.ndarray, bias: np.ndarray, tau_max_nm: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Apply the actuator fault ``tau = (a g + b) tau_max`` to clipped commands ``(n, 3)`` and
+        step; returns ``(sigma, omega, |sigma|^2)``. A backend may fuse this into one kernel."""
+        sigma, omega = self.step((command * gain + bias) * tau_max_nm)
+        return sigma, omega, norm2(sigma)
+
+
+class NumpyPlant(Plant):
+    """The reference backend: every episode of a batch stepped as plain numpy array operations."""
+
+    name = "reference"
 
     def __init__(
         self, sigma0: np.ndarray, omega0_rad_s: np.ndarray, inertia_kgm2: np.ndarray, dt_s: float

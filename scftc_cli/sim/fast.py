@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from scftc_cli.sim.dynamics import Plant
+
 
 @numba.njit(inline="always")
 def _derivatives(s0, s1, s2, w0, w1, w2, t0, t1, t2, i0, i1, i2):  # noqa: PLR0913
@@ -28,13 +30,16 @@ def _derivatives(s0, s1, s2, w0, w1, w2, t0, t1, t2, i0, i1, i2):  # noqa: PLR09
 
 
 @numba.njit(inline="always")
-def _step_episode(e, sigma, omega, torque, inertia, dt_s, sigma_norm2):
-    """One RK4 step of episode ``e`` in place, then the shadow switch and ``|sigma|^2``."""
+def _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
+    """One RK4 step of episode ``e`` in place under ``tau = (a g + b) tau_max``, then the shadow
+    switch and ``|sigma|^2``."""
     h = 0.5 * dt_s
     c = dt_s / 6.0
     s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
     w0, w1, w2 = omega[e, 0], omega[e, 1], omega[e, 2]
-    t0, t1, t2 = torque[e, 0], torque[e, 1], torque[e, 2]
+    t0 = (command[e, 0] * gain[e, 0] + bias[e, 0]) * tau_max
+    t1 = (command[e, 1] * gain[e, 1] + bias[e, 1]) * tau_max
+    t2 = (command[e, 2] * gain[e, 2] + bias[e, 2]) * tau_max
     i0, i1, i2 = inertia[e, 0], inertia[e, 1], inertia[e, 2]
     a0, a1, a2, b0, b1, b2 = _derivatives(s0, s1, s2, w0, w1, w2, t0, t1, t2, i0, i1, i2)
     c0, c1, c2, d0, d1, d2 = _derivatives(
@@ -65,34 +70,35 @@ def _step_episode(e, sigma, omega, torque, inertia, dt_s, sigma_norm2):
 
 
 @numba.njit(cache=True)
-def rk4_step_serial(sigma, omega, torque, inertia, dt_s, sigma_norm2):
+def rk4_step_serial(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
     for e in range(sigma.shape[0]):
-        _step_episode(e, sigma, omega, torque, inertia, dt_s, sigma_norm2)
+        _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
 
 
 @numba.njit(parallel=True, cache=True)
-def rk4_step_parallel(sigma, omega, torque, inertia, dt_s, sigma_norm2):
+def rk4_step_parallel(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
     for e in numba.prange(sigma.shape[0]):
-        _step_episode(e, sigma, omega, torque, inertia, dt_s, sigma_norm2)
+        _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
 
 
 # Threads pay off only on large batches: on small ones the fork-join barrier costs more than the
 # work, and a busy second core stalls it badly. Both kernels run the same per-episode code.
-PARALLEL_MIN_BATCH = 20_000
+PARALLEL_MIN_BATCH = 5_000
 
 
-def rk4_step_inplace(sigma, omega, torque, inertia, dt_s, sigma_norm2) -> None:
-    """Advance ``sigma``, ``omega`` ``(n, 3)`` in place by one RK4 step under ``torque`` ``(n, 3)``,
-    shadow-switch, and write ``|sigma|^2`` of the new attitude into ``sigma_norm2`` ``(n,)``.
-    Serial or parallel by batch size, with identical results."""
+def rk4_step_inplace(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2) -> None:
+    """Advance ``sigma``, ``omega`` ``(n, 3)`` in place by one RK4 step under the torque
+    ``(command g + b) tau_max`` (all ``(n, 3)``), shadow-switch, and write ``|sigma|^2`` of the
+    new attitude into ``sigma_norm2`` ``(n,)``. Serial or parallel by batch size, same results."""
     kernel = rk4_step_parallel if len(sigma) >= PARALLEL_MIN_BATCH else rk4_step_serial
-    kernel(sigma, omega, torque, inertia, dt_s, sigma_norm2)
+    kernel(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
 
 
-class FastPlant:
-    """The default backend: ``NumpyPlant``'s physics, fused and parallel (bit-identical)."""
+class FastPlant(Plant):
+    """The default backend: ``NumpyPlant``'s physics and actuator, fused and parallel, with
+    bit-identical results."""
 
-    name = "fast"
+    name = "numpy"
 
     def __init__(
         self, sigma0: np.ndarray, omega0_rad_s: np.ndarray, inertia_kgm2: np.ndarray, dt_s: float
@@ -103,13 +109,20 @@ class FastPlant:
         self.dt_s = float(dt_s)
         self.sigma_norm2 = np.empty(len(self.sigma))
 
-    def step(self, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Advance one control step under ``torque_nm`` ``(n, 3)``; return the new true state.
-
-        The returned arrays are this plant's buffers, overwritten by the next step: copy to keep.
-        """
+    def actuate(
+        self, command: np.ndarray, gain: np.ndarray, bias: np.ndarray, tau_max_nm: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fused step. The returned arrays are this plant's buffers, overwritten by the next
+        step: copy them to keep them."""
         rk4_step_inplace(
-            self.sigma, self.omega_rad_s, np.ascontiguousarray(torque_nm), self.inertia_kgm2,
-            self.dt_s, self.sigma_norm2,
+            self.sigma, self.omega_rad_s, np.ascontiguousarray(command, dtype=np.float64),
+            np.ascontiguousarray(gain, dtype=np.float64), np.ascontiguousarray(bias, dtype=np.float64),
+            float(tau_max_nm), self.inertia_kgm2, self.dt_s, self.sigma_norm2,
         )
-        return self.sigma, self.omega_rad_s
+        return self.sigma, self.omega_rad_s, self.sigma_norm2
+
+    def step(self, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Advance under a given torque (``a g + b = tau``, ``tau_max = 1``: exact in floating point)."""
+        ones = np.ones_like(self.sigma)
+        sigma, omega, _ = self.actuate(torque_nm, ones, np.zeros_like(self.sigma), 1.0)
+        return sigma, omega

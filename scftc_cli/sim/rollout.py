@@ -13,9 +13,10 @@ import numpy as np
 
 from scftc_cli.baselines.base import Context, Controller, TrueFault
 from scftc_cli.errors import ControllerError
+from scftc_cli.sim.dynamics import Plant
 from scftc_cli.sim.fast import FastPlant
 from scftc_cli.sim.faults import Episodes
-from scftc_cli.sim.mrp import angle_deg_from_norm2, norm2
+from scftc_cli.sim.mrp import angle_deg_from_norm2
 from scftc_cli.sim.sensors import Sensor
 from scftc_cli.spec import INERTIA_NOMINAL, SPEC
 
@@ -63,7 +64,7 @@ def controller_context(controller: Controller, episodes: Episodes) -> Context:
     return Context(n=episodes.n, fault=fault)
 
 
-PlantFactory = Callable[[np.ndarray, np.ndarray, np.ndarray, float], object]
+PlantFactory = Callable[[np.ndarray, np.ndarray, np.ndarray, float], Plant]
 
 
 def rollout(
@@ -100,8 +101,7 @@ def rollout(
     sigma, omega = episodes.sigma0, episodes.omega0_rad_s
     for k in range(steps):
         command = np.clip(validate_commands(controller.act(sensor.observe(sigma, omega)), n), -1, 1)
-        sigma, omega = plant.step((command * gain + bias) * plant_spec.tau_max_nm)
-        sigma_norm2 = norm2(sigma)
+        sigma, omega, sigma_norm2 = plant.actuate(command, gain, bias, plant_spec.tau_max_nm)
         np.minimum(min_norm2, sigma_norm2, out=min_norm2)
         if k >= dwell_start:
             np.maximum(dwell_max, sigma_norm2, out=dwell_max)

@@ -1,0 +1,41 @@
+"""``scftc crosscheck``: show the numpy backend equal to Basilisk on the same episodes."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated
+
+import typer
+
+from scftc_cli.commands.common import exits_cleanly, step_progress
+from scftc_cli.crosscheck import TOLERANCE, crosscheck, default_controllers, total_steps
+from scftc_cli.errors import ScftcError
+
+
+@exits_cleanly
+def crosscheck_command(
+    episodes: Annotated[
+        int, typer.Option(help="Episodes in all, mixed classes and sensor faults.", min=1)
+    ] = 20,
+    controller: Annotated[
+        list[str] | None,
+        typer.Option(help="Controller in the loop, repeatable (default: pd and an adaptive law)."),
+    ] = None,
+) -> None:
+    """Fly the same episodes through the numpy backend and Basilisk and compare every state.
+
+    Prints one JSON document; exits 1 if any sigma or omega differs by more than 1e-9 or any
+    gate outcome differs.
+    """
+    controllers = tuple(controller) if controller else default_controllers()
+    with step_progress(f"crosscheck: {episodes} episodes", total_steps(episodes, controllers)) as on_step:
+        result = crosscheck(episodes, controllers, on_step=on_step)
+    typer.echo(json.dumps(result.dump(), indent=2))
+    if not result.passed:
+        why = [] if result.gates_agree else ["gate outcomes differ"]
+        if not result.max_abs_state_diff <= TOLERANCE:
+            why.append(
+                f"max_abs_state_diff {result.max_abs_state_diff:.3g} > {TOLERANCE:g} "
+                f"(one-step max_abs_step_diff {result.max_abs_step_diff:.3g})"
+            )
+        raise ScftcError("crosscheck failed: " + "; ".join(why))
