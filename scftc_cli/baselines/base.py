@@ -75,10 +75,11 @@ def register(name: str, summary: str) -> Callable[[type[Controller]], type[Contr
 
 
 def registry() -> dict[str, ControllerInfo]:
-    """Every registered controller, in battery order."""
+    """Every registered controller, in battery order: deployable ones first, then the oracles."""
     import scftc_cli.baselines  # noqa: F401  (importing the package registers the battery)
 
-    return dict(_REGISTRY)
+    ordered = sorted(_REGISTRY.values(), key=lambda info: info.privileged)  # stable sort
+    return {info.name: info for info in ordered}
 
 
 def controller_info(name: str) -> ControllerInfo:

@@ -1,0 +1,285 @@
+"""One generic tuner for the classical battery: a controller's parameter box, searched by
+``scipy.optimize.differential_evolution`` (fixed seed) on **train-split** episodes only.
+
+Objective (minimized): ``-settled_rate + tie``, where ``settled_rate`` is the fraction of the tuning
+episodes that pass the settled gate and ``tie`` in ``[0, 0.5 / n)`` is a tie-breaker on the mean
+log dwell error, too small to outweigh a single episode: it only ranks parameter sets that settle
+the same number of episodes (the train split is easy enough that many do), preferring the one that
+settles deeper. The tuning episodes are the first ``n_faults x n_seeds`` pinned episodes of the
+train cells ``sign``, ``gain`` and ``gain_bias`` flown as one batch; ``loss`` is left out because
+no controller of the battery settles a dead axis (SPEC section 4) and it carries no signal.
+
+Budgets: ``quick`` (CI smoke test, well under 2 minutes) and ``full`` (the committed params
+files; 20 faults x 3 seeds per class, minutes per controller). After the search, the winner is
+scored once on larger train cells for the provenance (``train_settled_rate``: the mean over the
+three classes). Same seed, same result: the episodes are pinned and DE is seeded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.optimize import differential_evolution
+
+from scftc_cli.baselines.adaptive import NAME as ADAPTIVE
+from scftc_cli.baselines.adaptive import AdaptiveParams, ClassicalAdaptive
+from scftc_cli.baselines.base import Controller
+from scftc_cli.baselines.icl import NAME as ICL
+from scftc_cli.baselines.icl import ICLAdaptive, ICLParams
+from scftc_cli.baselines.nussbaum import NAME as NUSSBAUM
+from scftc_cli.baselines.nussbaum import Nussbaum, NussbaumParams
+from scftc_cli.baselines.pid import NAME as PID_NAME
+from scftc_cli.baselines.pid import PID, PIDParams
+from scftc_cli.baselines.rls import NAME as RLS
+from scftc_cli.baselines.rls import RLSDob, RLSParams
+from scftc_cli.params import Provenance, save_params
+from scftc_cli.scoring import gate_outcomes
+from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.spec import SPEC
+from scftc_cli.training import TrainReport, TrainRequest, register_trainer
+
+TUNE_SPLIT = "train"
+TUNE_CLASSES: tuple[str, ...] = ("sign", "gain", "gain_bias")
+
+
+@dataclass(frozen=True)
+class Dim:
+    """One searched parameter: ``[lo, hi]``, searched in log10 if ``log``, rounded if ``integer``."""
+
+    name: str
+    lo: float
+    hi: float
+    log: bool = False
+    integer: bool = False
+
+    def bounds(self) -> tuple[float, float]:
+        return (math.log10(self.lo), math.log10(self.hi)) if self.log else (self.lo, self.hi)
+
+    def decode(self, x: float) -> float | int:
+        value = 10.0**x if self.log else x
+        return int(round(value)) if self.integer else float(value)
+
+    def encode(self, value: float) -> float:
+        return math.log10(value) if self.log else float(value)
+
+
+@dataclass(frozen=True)
+class TuneSpec:
+    """What is tuned for one controller: its params dataclass, factory and search box."""
+
+    controller: str
+    params_cls: type
+    factory: Callable[[Any], Controller]
+    space: tuple[Dim, ...]
+
+    def params(self, x: np.ndarray) -> Any:
+        """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
+        return self.params_cls(**{d.name: d.decode(v) for d, v in zip(self.space, x, strict=True)})
+
+    def start(self) -> np.ndarray:
+        """The documented starting values, clipped into the box (seeded into DE's population)."""
+        default = self.params_cls()
+        x = [d.encode(getattr(default, d.name)) for d in self.space]
+        return np.clip(x, [d.bounds()[0] for d in self.space], [d.bounds()[1] for d in self.space])
+
+
+@dataclass(frozen=True)
+class TuneBudget:
+    """Episodes per train class and DE effort."""
+
+    n_faults: int
+    n_seeds: int
+    popsize: int
+    maxiter: int
+    final_faults: int
+    final_seeds: int
+
+
+BUDGETS: dict[str, TuneBudget] = {
+    "quick": TuneBudget(n_faults=3, n_seeds=2, popsize=2, maxiter=2, final_faults=5, final_seeds=2),
+    "full": TuneBudget(n_faults=20, n_seeds=3, popsize=10, maxiter=40, final_faults=50, final_seeds=10),
+}
+
+SPECS: dict[str, TuneSpec] = {
+    PID_NAME: TuneSpec(PID_NAME, PIDParams, PID, (
+        Dim("kp_s2", 0.005, 0.5, log=True),
+        Dim("kd_s", 0.03, 1.5, log=True),
+        Dim("ki_s3", 1e-5, 1e-2, log=True),
+        Dim("integral_cap", 0.05, 1.0),
+        Dim("integrate_below", 0.01, 1.0, log=True),
+    )),
+    ADAPTIVE: TuneSpec(ADAPTIVE, AdaptiveParams, ClassicalAdaptive, (
+        Dim("vote_min_da", 0.01, 0.3, log=True),
+        Dim("vote_threshold", 1.0, 8.0),
+        Dim("gamma_m", 0.05, 1.9, log=True),
+        Dim("gamma_beta", 0.0, 1.5),
+        Dim("sigma_mod", 0.0, 0.1),
+        Dim("dead_zone", 0.0, 0.02),
+        Dim("dither_amp", 0.0, 0.5),
+        Dim("dither_steps", 0, 30, integer=True),
+    )),
+    ICL: TuneSpec(ICL, ICLParams, ICLAdaptive, (
+        Dim("window", 1, 8, integer=True),
+        Dim("stack_size", 3, 20, integer=True),
+        Dim("gamma_cl", 0.1, 1.9, log=True),  # >= 0.1: the concurrent-learning term stays in the law
+        Dim("gamma_inst", 0.0, 1.9),
+        Dim("dither_amp", 0.0, 0.6),
+        Dim("dither_steps", 0, 80, integer=True),
+    )),
+    NUSSBAUM: TuneSpec(NUSSBAUM, NussbaumParams, Nussbaum, (
+        Dim("gamma", 0.005, 2.0, log=True),
+        Dim("zeta0", 0.2, 1.5),
+        Dim("dead_zone", 0.001, 0.2, log=True),
+        Dim("gamma_d", 0.0, 2.0),
+        Dim("kp_s2", 0.01, 0.1, log=True),
+        Dim("kd_s", 0.05, 0.5, log=True),
+    )),
+    RLS: TuneSpec(RLS, RLSParams, RLSDob, (
+        Dim("forgetting", 0.9, 1.0),
+        Dim("p0_theta", 1.0, 1e4, log=True),
+        Dim("p0_beta", 0.1, 1e3, log=True),
+        Dim("p_max", 10.0, 1e5, log=True),
+        Dim("dither_amp", 0.0, 0.5),
+        Dim("dither_steps", 0, 20, integer=True),
+        Dim("latch_min_steps", 2, 30, integer=True),
+        Dim("latch_tol", 1e-4, 0.1, log=True),
+        Dim("latch_prior_ratio", 1e-4, 0.1, log=True),
+        Dim("observer_gain", 0.01, 0.5, log=True),
+    )),
+}
+
+
+def concat_episodes(parts: list[Episodes]) -> Episodes:
+    """One batch holding the episodes of several cells (of one split, no sensor fault)."""
+    cat = lambda get: np.concatenate([get(e) for e in parts])  # noqa: E731
+    return Episodes(
+        split=parts[0].split,
+        fault_class="+".join(e.fault_class for e in parts),
+        sensor=None,
+        fault=ActuatorFault(
+            cat(lambda e: e.fault.gain), cat(lambda e: e.fault.bias), cat(lambda e: e.fault.inertia_scale)
+        ),
+        sigma0=cat(lambda e: e.sigma0),
+        omega0_rad_s=cat(lambda e: e.omega0_rad_s),
+        sensor_bias_mrp=None,
+        fault_index=cat(lambda e: e.fault_index),
+        seed_index=cat(lambda e: e.seed_index),
+    )
+
+
+def tuning_episodes(n_faults: int, n_seeds: int, classes: tuple[str, ...] = TUNE_CLASSES) -> Episodes:
+    """The pinned train-split episodes the tuner flies (first faults and seeds of each cell)."""
+    return concat_episodes([draw_episodes(TUNE_SPLIT, c, None, n_faults, n_seeds) for c in classes])
+
+
+def objective(controller: Controller, episodes: Episodes) -> tuple[float, float]:
+    """``(loss, settled_rate)``: ``loss = -settled_rate + tie`` (see the module docstring)."""
+    result = rollout(controller, episodes)
+    settled = gate_outcomes(result)["settled"]
+    n = settled.size
+    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / SPEC.gates.settled_deg), -4, 4)
+    tie = 0.5 / n * float(np.mean(depth + 4.0) / 8.0)
+    rate = float(settled.mean())
+    return -rate + tie, rate
+
+
+def train_scores(spec: TuneSpec, params: Any, n_faults: int, n_seeds: int) -> dict[str, float]:
+    """Settled rate of ``params`` on each train class (incl. ``loss``, for the record)."""
+    scores = {}
+    for fault_class in SPEC.fault_classes:
+        episodes = draw_episodes(TUNE_SPLIT, fault_class, None, n_faults, n_seeds)
+        scores[fault_class] = float(gate_outcomes(rollout(spec.factory(params), episodes))["settled"].mean())
+    return scores
+
+
+def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
+    """Search ``spec``'s box with differential evolution on train episodes; save the winner."""
+    budget = BUDGETS[request.budget]
+    started = time.perf_counter()
+    episodes = tuning_episodes(budget.n_faults, budget.n_seeds)
+    dims = len(spec.space)
+    expected = (budget.maxiter + 1) * budget.popsize * dims
+    calls = {"n": 0, "best": -np.inf}
+
+    def loss(x: np.ndarray) -> float:
+        value, rate = objective(spec.factory(spec.params(x)), episodes)
+        calls["n"] += 1
+        calls["best"] = max(calls["best"], rate)
+        request.on_progress(
+            min(calls["n"] / expected, 0.99), f"eval {calls['n']}/{expected}, best train {calls['best']:.3f}"
+        )
+        return value
+
+    result = differential_evolution(
+        loss,
+        bounds=[d.bounds() for d in spec.space],
+        seed=request.seed,
+        popsize=budget.popsize,
+        maxiter=budget.maxiter,
+        tol=0.0,
+        init="latinhypercube",
+        polish=False,
+        x0=spec.start(),
+        integrality=[d.integer for d in spec.space],
+    )
+    best = spec.params(result.x)
+    request.on_progress(0.99, "scoring the winner on the train split")
+    scores = train_scores(spec, best, budget.final_faults, budget.final_seeds)
+    train_rate = float(np.mean([scores[c] for c in TUNE_CLASSES]))
+    wall_s = time.perf_counter() - started
+    notes = (
+        f"differential_evolution(seed={request.seed}, popsize={budget.popsize}, maxiter={budget.maxiter}) "
+        f"on {TUNE_SPLIT} classes {'+'.join(TUNE_CLASSES)} x {budget.n_faults} faults x {budget.n_seeds} "
+        f"seeds; {calls['n']} evaluations, best tuning-set settled rate {-result.fun:.3f} (incl. tie-break); "
+        f"train_settled_rate = mean over those classes on {budget.final_faults} x {budget.final_seeds}: "
+        + ", ".join(f"{c} {v:.3f}" for c, v in scores.items())
+        + f"; wall {wall_s:.0f} s"
+    )
+    provenance = Provenance(
+        command=request.command or f"scftc train --controller {spec.controller} --seed {request.seed} "
+        f"--budget {request.budget}",
+        seed=request.seed,
+        budget=request.budget,
+        train_settled_rate=train_rate,
+        notes=notes,
+    )
+    path = save_params(spec.controller, dataclasses.asdict(best), provenance, request.out)
+    request.on_progress(1.0, "done")
+    return TrainReport(
+        controller=spec.controller,
+        artifact=path,
+        train_settled_rate=train_rate,
+        details={"train_scores": scores, "evaluations": calls["n"], "wall_s": wall_s},
+    )
+
+
+@register_trainer(PID_NAME)
+def tune_pid(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[PID_NAME], request)
+
+
+@register_trainer(ADAPTIVE)
+def tune_classical_adaptive(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[ADAPTIVE], request)
+
+
+@register_trainer(ICL)
+def tune_icl_adaptive(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[ICL], request)
+
+
+@register_trainer(NUSSBAUM)
+def tune_nussbaum(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[NUSSBAUM], request)
+
+
+@register_trainer(RLS)
+def tune_rls_dob(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[RLS], request)
