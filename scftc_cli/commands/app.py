@@ -8,6 +8,7 @@ from scftc_cli import BENCHMARK_VERSION, __version__
 from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
 from scftc_cli.commands.listing import list_command
+from scftc_cli.commands.reproduce import reproduce_command
 from scftc_cli.commands.train import train_command
 
 app = typer.Typer(
@@ -22,6 +23,7 @@ app.command("eval")(eval_command)
 app.command("list")(list_command)
 app.command("train")(train_command)
 app.command("crosscheck")(crosscheck_command)
+app.command("reproduce")(reproduce_command)
 
 
 def main() -> None:
