@@ -7,8 +7,10 @@ import typer
 from scftc_cli import BENCHMARK_VERSION, __version__
 from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
+from scftc_cli.commands.leaderboard import leaderboard_app, schemas_command
 from scftc_cli.commands.listing import list_command
 from scftc_cli.commands.reproduce import reproduce_command
+from scftc_cli.commands.submit import submit_command
 from scftc_cli.commands.train import train_command
 
 app = typer.Typer(
@@ -24,6 +26,9 @@ app.command("list")(list_command)
 app.command("train")(train_command)
 app.command("crosscheck")(crosscheck_command)
 app.command("reproduce")(reproduce_command)
+app.command("submit")(submit_command)
+app.add_typer(leaderboard_app, name="leaderboard")
+app.command("schemas")(schemas_command)
 
 
 def main() -> None:
