@@ -10,5 +10,7 @@ from scftc_cli.baselines import (  # noqa: F401  (imported to register)
     adaptive,
     icl,
     nussbaum,
+    ppo,
+    rma,
     rls,
 )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 from typing import Annotated
@@ -22,19 +21,6 @@ from scftc_cli.reproduce import planned_rollouts, run_study, write_tables
 from scftc_cli.spec import SPEC
 
 
-def single_threaded_torch() -> None:
-    """Run the learned controllers' networks on one intra-op thread.
-
-    They evaluate a small network on a batch every 0.5 s step; on a 2-core machine torch's default
-    two threads only contend, with each other and with any other load: a 500-episode ``rma_dob``
-    cell took ~1 s on one thread and 2.5-58 s on two (measured). Configures torch only if a
-    controller already loaded it (call after ``registry()``); this module never imports it.
-    """
-    torch = sys.modules.get("torch")
-    if torch is not None:
-        torch.set_num_threads(1)
-
-
 @exits_cleanly
 def reproduce_command(
     out: Annotated[Path, typer.Option(help="Folder for the tables and figures.")] = Path("results"),
@@ -48,8 +34,7 @@ def reproduce_command(
     from scftc_cli.figures import write_figures  # matplotlib only when a figure is drawn
 
     start = time.perf_counter()
-    total_steps = planned_rollouts() * SPEC.plant.steps  # loads the battery (and torch, if used)
-    single_threaded_torch()
+    total_steps = planned_rollouts() * SPEC.plant.steps
     columns = (
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),

@@ -1,0 +1,214 @@
+"""Trainers of ``rma_student`` and ``rma_dob``: DAgger on the train split (SPEC section 4).
+
+Each iteration flies a fresh batch of train-split episodes with the student's own latched
+estimate in the loop (mixed, early on, with episodes driven by the teacher's true ``theta``), so
+that the student learns on the states it will itself visit; the recorded feature sequences are
+aggregated in a replay buffer and the GRU regresses the true ``theta = g/f`` at every step
+(cross-entropy on its sign plus a Huber loss on ``log |theta|``: the closed loop cares about
+the sign and the ratio ``theta / theta_hat``).
+``rma_dob``'s gain student flies with train-split biases and the disturbance observer in the
+loop, so the estimate it learns is the one the observer composes with, and reads only features
+that a constant bias cannot shift (``BIASED_FEATURES`` in ``baselines/rma.py``).
+
+Nothing here sees the test split; the checkpoint kept is the best on pinned *train* cells.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.nn import functional
+
+from scftc_cli.baselines.base import Context
+from scftc_cli.baselines.rma import (
+    LatchConfig,
+    StudentConfig,
+    StudentController,
+    ThetaStudent,
+    save_student,
+    weights_path,
+)
+from scftc_cli.params import Provenance, save_params
+from scftc_cli.scoring import gate_outcomes
+from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes, sample_fault
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.spec import SPEC
+from scftc_cli.training import TrainReport, TrainRequest, register_trainer
+
+OBSERVER_GAIN = 0.1  # SPEC section 4: lambda ~ 0.1 keeps the observer pole inside the envelope
+
+
+@dataclass(frozen=True)
+class RMABudget:
+    """How much work one training run does."""
+
+    iterations: int
+    episodes: int  # fresh episodes flown per iteration
+    grad_steps: int  # gradient steps per iteration
+    minibatch: int  # (episode, axis) sequences per gradient step
+    buffer_iterations: int  # DAgger aggregation: keep this many iterations' data
+    teacher_fraction: float  # teacher mixing decays from 1 to 0 over this fraction of the run
+    lr: float
+    eval_every: int
+    eval_faults: int  # pinned train cells used to pick the checkpoint (x eval_seeds)
+    eval_seeds: int
+    hidden: int = 32
+
+
+BUDGETS: dict[str, RMABudget] = {
+    "quick": RMABudget(iterations=12, episodes=64, grad_steps=6, minibatch=96, buffer_iterations=4,
+                       teacher_fraction=0.5, lr=3e-3, eval_every=4, eval_faults=5, eval_seeds=2),
+    "full": RMABudget(iterations=160, episodes=256, grad_steps=14, minibatch=256, buffer_iterations=8,
+                      teacher_fraction=0.25, lr=3e-3, eval_every=20, eval_faults=20, eval_seeds=5),
+}
+CLASSES = {"rma_student": ("sign", "gain"), "rma_dob": ("sign", "gain", "gain_bias")}
+
+
+def sample_train_episodes(rng: np.random.Generator, n: int, classes: tuple[str, ...]) -> Episodes:
+    """``n`` fresh train-split episodes, each of a class drawn uniformly from ``classes``."""
+    split, plant = SPEC.splits["train"], SPEC.plant
+    gains, biases, scales = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+    for e in range(n):
+        gains[e], biases[e], scales[e] = sample_fault(split, classes[rng.integers(len(classes))], rng)
+    sigma0 = rng.uniform(-plant.sigma0_half_width, plant.sigma0_half_width, (n, 3))
+    omega0 = rng.uniform(-plant.omega0_half_width_rad_s, plant.omega0_half_width_rad_s, (n, 3))
+    return Episodes("train", "mixed", None, ActuatorFault(gains, biases, scales), sigma0, omega0,
+                    None, np.arange(n), np.zeros(n, dtype=int))
+
+
+class _DaggerController(StudentController):
+    """Training-only (privileged) controller: the student in the loop, except on the episodes of
+    ``teacher_mask`` where the true ``theta`` drives; records every step's student features."""
+
+    privileged = True
+
+    def __init__(self, model: ThetaStudent, config: StudentConfig, teacher_mask: np.ndarray) -> None:
+        super().__init__(model=model, config=config)
+        self.teacher_mask = teacher_mask[:, None]
+        self.recorded: list[np.ndarray] = []
+
+    def reset(self, n: int, context: Context) -> None:
+        if context.fault is None:
+            raise ValueError("the DAgger collector needs the true fault")
+        self.true_theta = context.fault.theta
+        super().reset(n, Context(n=n))  # the student itself never sees the fault
+        self.recorded = []
+
+    def theta_hat(self, obs: np.ndarray) -> np.ndarray:
+        theta_hat = super().theta_hat(obs)
+        self.recorded.append(self.estimator.features.astype(np.float32))
+        return np.where(self.teacher_mask, self.true_theta, theta_hat)
+
+
+def settled_rate(
+    model: ThetaStudent, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
+) -> float:
+    """Mean settled rate over the pinned *train* cells of ``classes``."""
+    controller = StudentController(model=copy.deepcopy(model).double().eval(), config=config)
+    rates = []
+    for fault_class in classes:
+        episodes = draw_episodes("train", fault_class, n_faults=n_faults, n_seeds=n_seeds)
+        rates.append(float(gate_outcomes(rollout(controller, episodes))["settled"].mean()))
+    return float(np.mean(rates))
+
+
+def student_loss(model: ThetaStudent, x: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
+    """Cross-entropy on the sign plus Huber on ``log |theta|``, over every step of the sequences
+    ``x`` ``(B, T, F)`` of axes whose true authority is ``theta`` ``(B,)``."""
+    target = theta[:, None].expand(x.shape[:2])
+    logit, log_mag, _ = model.heads(x)
+    loss = functional.binary_cross_entropy_with_logits(logit, (target > 0).float())
+    return loss + functional.smooth_l1_loss(log_mag, target.abs().clamp_min(0.05).log())
+
+
+def train_student(request: TrainRequest) -> TrainReport:
+    """DAgger-train the student of ``request.controller`` (``rma_student`` or ``rma_dob``)."""
+    name, budget = request.controller, BUDGETS[request.budget]
+    classes = CLASSES[name]
+    config = StudentConfig(
+        hidden=budget.hidden, latch=LatchConfig(),
+        observer_gain=OBSERVER_GAIN if name == "rma_dob" else 0.0,
+        bias_invariant=name == "rma_dob",
+    )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    torch.manual_seed(request.seed)
+    rng = np.random.default_rng(request.seed)
+    start = time.monotonic()
+    try:
+        model = ThetaStudent(config.hidden, config.bias_invariant)
+        opt = torch.optim.Adam(model.parameters(), lr=budget.lr)
+        total_steps = budget.iterations * budget.grad_steps
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, total_steps, eta_min=budget.lr / 20)
+        steps, n_feat = SPEC.plant.steps, model.inp.in_features
+        capacity = budget.buffer_iterations * budget.episodes * 3
+        xs = torch.zeros((capacity, steps, n_feat))
+        ys = torch.zeros(capacity)
+        filled, cursor, loss_avg = 0, 0, float("nan")
+        best = (-1.0, copy.deepcopy(model.state_dict()))
+        history = []
+        for it in range(budget.iterations):
+            p_teacher = max(0.0, 1.0 - it / max(1.0, budget.teacher_fraction * budget.iterations))
+            episodes = sample_train_episodes(rng, budget.episodes, classes)
+            mask = rng.random(budget.episodes) < p_teacher
+            collector = _DaggerController(copy.deepcopy(model).double().eval(), config, mask)
+            rollout(collector, episodes)
+            x = torch.from_numpy(np.stack(collector.recorded, axis=1))  # (3n, T, F)
+            y = torch.from_numpy(episodes.fault.theta.reshape(-1).astype(np.float32))
+            idx = (cursor + torch.arange(len(y))) % capacity
+            xs[idx], ys[idx] = x, y
+            cursor, filled = (cursor + len(y)) % capacity, min(capacity, filled + len(y))
+            model.train()
+            for _ in range(budget.grad_steps):
+                pick = torch.randint(filled, (budget.minibatch,))
+                loss = student_loss(model, xs[pick], ys[pick])
+                opt.zero_grad()
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+                opt.step()
+                sched.step()
+                loss_avg = loss.item() if np.isnan(loss_avg) else 0.9 * loss_avg + 0.1 * loss.item()
+            message = f"iter {it + 1}/{budget.iterations} loss {loss_avg:.4f}"
+            if (it + 1) % budget.eval_every == 0 or it + 1 == budget.iterations:
+                rate = settled_rate(model, config, classes, budget.eval_faults, budget.eval_seeds)
+                history.append({"iteration": it + 1, "loss": round(loss_avg, 5), "train_settled": rate})
+                if rate >= best[0]:
+                    best = (rate, copy.deepcopy(model.state_dict()))
+                message += f" train settled {rate:.3f}"
+            request.on_progress((it + 1) / budget.iterations, message)
+        model.load_state_dict(best[1])
+        request.on_progress(1.0, "scoring the kept checkpoint on the pinned train cells")
+        train_rate = settled_rate(model, config, classes, SPEC.n_faults, SPEC.n_seeds)
+    finally:
+        torch.set_num_threads(threads)
+    out = request.out or weights_path(name)
+    save_student(model, config, out)
+    wall_s = time.monotonic() - start
+    provenance = Provenance(
+        command=request.command or f"scftc train --controller {name} --seed {request.seed} "
+        f"--budget {request.budget}",
+        seed=request.seed, budget=request.budget, train_settled_rate=train_rate,
+        notes=f"DAgger on train classes {list(classes)}; wall {wall_s:.0f} s on CPU (1 thread); "
+        "train_settled_rate = mean settled rate over the pinned train cells of those classes",
+    )
+    params = {"config": config.to_dict(), "budget": asdict(budget), "history": history,
+              "weights_file": Path(out).name}
+    save_params(name, params, provenance, Path(out).with_suffix(".yaml"))
+    return TrainReport(name, Path(out), train_rate, {"wall_s": wall_s, "history": history})
+
+
+@register_trainer("rma_student")
+def train_rma_student(request: TrainRequest) -> TrainReport:
+    """``scftc train --controller rma_student``."""
+    return train_student(request)
+
+
+@register_trainer("rma_dob")
+def train_rma_dob(request: TrainRequest) -> TrainReport:
+    """``scftc train --controller rma_dob``."""
+    return train_student(request)
