@@ -1,6 +1,6 @@
 # The two commands of the README quick start. Each sets up .venv on first use.
 #   make reproduce   -> the study's battery and sensor tables and figures, in results/
-#   make test        -> the test suite (what .ci/run runs)
+#   make test        -> lint, schema check, the test suite, leaderboard verify (what .ci/run runs)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -21,7 +21,9 @@ reproduce: setup
 
 test: setup
 	$(BIN)/ruff check scftc_cli tests benchmarks
+	$(BIN)/scftc schemas --check
 	$(BIN)/pytest -q
+	$(BIN)/scftc leaderboard verify
 
 lint: setup
 	$(BIN)/ruff check scftc_cli tests benchmarks
