@@ -52,16 +52,22 @@ def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-@contextmanager
-def step_progress(description: str, total_steps: int) -> Iterator[Callable[[int], None]]:
-    """A rich progress bar on stderr counting simulation steps; yields an ``on_step`` callback."""
-    columns = (
+def step_progress_bar() -> Progress:
+    """The rich progress bar every long command shows on stderr (counts simulation steps)."""
+    return Progress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
         TimeRemainingColumn(),
+        console=stderr,
+        transient=True,
     )
-    with Progress(*columns, console=stderr, transient=True) as progress:
+
+
+@contextmanager
+def step_progress(description: str, total_steps: int) -> Iterator[Callable[[int], None]]:
+    """A progress bar counting ``total_steps`` simulation steps; yields an ``on_step`` callback."""
+    with step_progress_bar() as progress:
         task = progress.add_task(description, total=total_steps)
         yield lambda _k: progress.advance(task)

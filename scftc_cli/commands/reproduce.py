@@ -7,16 +7,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 
-from scftc_cli.commands.common import exits_cleanly, stderr
+from scftc_cli.commands.common import exits_cleanly, stderr, step_progress_bar
 from scftc_cli.reproduce import planned_rollouts, run_study, write_tables
 from scftc_cli.spec import SPEC
 
@@ -35,14 +27,7 @@ def reproduce_command(
 
     start = time.perf_counter()
     total_steps = planned_rollouts() * SPEC.plant.steps
-    columns = (
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, console=stderr, transient=True) as progress:
+    with step_progress_bar() as progress:
         task = progress.add_task("reproduce", total=total_steps)
         study = run_study(
             n_faults,
