@@ -92,9 +92,12 @@ class StudentConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> StudentConfig:
-        return cls(hidden=int(d["hidden"]), latch=LatchConfig(**d["latch"]),
-                   observer_gain=float(d["observer_gain"]),
-                   bias_invariant=bool(d.get("bias_invariant", False)))
+        return cls(
+            hidden=int(d["hidden"]),
+            latch=LatchConfig(**d["latch"]),
+            observer_gain=float(d["observer_gain"]),
+            bias_invariant=bool(d.get("bias_invariant", False)),
+        )
 
 
 class ThetaStudent(nn.Module):
@@ -126,16 +129,19 @@ class ThetaStudent(nn.Module):
         out = self.head(y)
         return out[..., 0], out[..., 1].clamp(LOG_MAG_MIN, LOG_MAG_MAX), h
 
-    def forward(
-        self, x: torch.Tensor, h0: torch.Tensor | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, x: torch.Tensor, h0: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         logit, log_mag, h = self.heads(x, h0)
         return torch.tanh(0.5 * logit) * torch.exp(log_mag), h
 
 
 def axis_features(
-    obs: np.ndarray, a_prev: np.ndarray, dw_prev: np.ndarray, da: np.ndarray, ddw: np.ndarray,
-    valid1: float, valid2: float,
+    obs: np.ndarray,
+    a_prev: np.ndarray,
+    dw_prev: np.ndarray,
+    da: np.ndarray,
+    ddw: np.ndarray,
+    valid1: float,
+    valid2: float,
 ) -> np.ndarray:
     """``(n * 3, N_FEATURES)`` features, episode-major then axis, for ``obs`` ``(n, 6)`` and the
     last step's command ``a_prev``, measured torque ``dw_prev`` and their first differences
@@ -150,9 +156,18 @@ def axis_features(
     ratio = np.clip(a_prev * dw_prev / (a_prev * a_prev + RATIO_EPS), -RATIO_CLIP, RATIO_CLIP)
     ratio_diff = np.clip(da * ddw / (da * da + RATIO_DIFF_EPS), -RATIO_CLIP, RATIO_CLIP)
     cols = (
-        a_prev, dw_prev, da, ddw, a_prev * dw_prev, a_prev * a_prev, ratio, ratio_diff,
-        obs[:, :3], obs[:, 3:],
-        np.full((n, 3), valid1), np.full((n, 3), valid2),
+        a_prev,
+        dw_prev,
+        da,
+        ddw,
+        a_prev * dw_prev,
+        a_prev * a_prev,
+        ratio,
+        ratio_diff,
+        obs[:, :3],
+        obs[:, 3:],
+        np.full((n, 3), valid1),
+        np.full((n, 3), valid2),
     )
     return np.stack(cols, axis=-1).reshape(n * 3, N_FEATURES)
 
@@ -253,7 +268,9 @@ class StudentController(Controller):
     name = "rma_student"
 
     def __init__(
-        self, path: Path | None = None, model: ThetaStudent | None = None,
+        self,
+        path: Path | None = None,
+        model: ThetaStudent | None = None,
         config: StudentConfig | None = None,
     ) -> None:
         if model is None or config is None:

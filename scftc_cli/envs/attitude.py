@@ -114,7 +114,9 @@ class AttitudeFTCEnv(gym.Env):
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(
-        self, split: str = "train", fault_classes: tuple[str, ...] = DEFAULT_CLASSES,
+        self,
+        split: str = "train",
+        fault_classes: tuple[str, ...] = DEFAULT_CLASSES,
         include_prev_action: bool = False,
     ) -> None:
         self._batch = _Batch(1, split, tuple(fault_classes), include_prev_action)
@@ -138,8 +140,11 @@ class AttitudeFTCVectorEnv(VectorEnv):
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
 
     def __init__(
-        self, num_envs: int = 64, split: str = "train",
-        fault_classes: tuple[str, ...] = DEFAULT_CLASSES, include_prev_action: bool = False,
+        self,
+        num_envs: int = 64,
+        split: str = "train",
+        fault_classes: tuple[str, ...] = DEFAULT_CLASSES,
+        include_prev_action: bool = False,
     ) -> None:
         if num_envs < 1:
             raise UsageError("num_envs must be at least 1")

@@ -55,9 +55,10 @@ class PPOBudget:
 
 
 BUDGETS: dict[str, PPOBudget] = {
-    "quick": PPOBudget(total_timesteps=2 * 8 * 400, n_envs=8, batch_size=800, n_epochs=2,
-                       eval_faults=10, eval_seeds=2),
-    "full": PPOBudget(total_timesteps=125 * 32 * 400),  # 125 rollouts, 1.6M steps, ~30-45 min
+    "quick": PPOBudget(
+        total_timesteps=2 * 8 * 400, n_envs=8, batch_size=800, n_epochs=2, eval_faults=10, eval_seeds=2
+    ),
+    "full": PPOBudget(total_timesteps=125 * 32 * 400),  # 125 rollouts, 1.6M steps: 51 min measured on 2 cores
 }
 
 
@@ -146,8 +147,11 @@ def settled_rate(policy: RecurrentPolicy, n_faults: int, n_seeds: int) -> float:
     """Mean settled rate over the pinned *train* cells of ``CLASSES``."""
     controller = E2EPPO(policy=policy.double().eval())
     rates = [
-        float(gate_outcomes(rollout(controller, draw_episodes("train", c, n_faults=n_faults,
-                                                              n_seeds=n_seeds)))["settled"].mean())
+        float(
+            gate_outcomes(rollout(controller, draw_episodes("train", c, n_faults=n_faults, n_seeds=n_seeds)))[
+                "settled"
+            ].mean()
+        )
         for c in CLASSES
     ]
     return float(np.mean(rates))
@@ -183,22 +187,36 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
             returns.append(self.raw)
             self.raw = 0.0
             done = self.model.num_timesteps / budget.total_timesteps
-            request.on_progress(min(done, 1.0), f"{self.model.num_timesteps} steps, "
-                                f"episode return {returns[-1]:.1f}")
+            request.on_progress(
+                min(done, 1.0), f"{self.model.num_timesteps} steps, episode return {returns[-1]:.1f}"
+            )
 
     try:
         # Returns are scaled to unit variance for the critic (training only; the policy's input
         # is the fixed-scaled observation, so the export needs no statistics).
-        env = VecNormalize(_sb3_vec_env(budget.n_envs, request.seed), norm_obs=False, norm_reward=True,
-                           gamma=budget.gamma)
+        env = VecNormalize(
+            _sb3_vec_env(budget.n_envs, request.seed), norm_obs=False, norm_reward=True, gamma=budget.gamma
+        )
         model = RecurrentPPO(
-            "MlpLstmPolicy", env, n_steps=budget.n_steps, batch_size=budget.batch_size,
-            n_epochs=budget.n_epochs, learning_rate=budget.learning_rate, gamma=budget.gamma,
-            gae_lambda=budget.gae_lambda, clip_range=budget.clip_range, ent_coef=budget.ent_coef,
-            seed=request.seed, device="cpu", verbose=0,
-            policy_kwargs={"lstm_hidden_size": config.lstm_hidden, "n_lstm_layers": 1,
-                           "net_arch": {"pi": list(config.net_arch), "vf": list(config.net_arch)},
-                           "log_std_init": budget.log_std_init},
+            "MlpLstmPolicy",
+            env,
+            n_steps=budget.n_steps,
+            batch_size=budget.batch_size,
+            n_epochs=budget.n_epochs,
+            learning_rate=budget.learning_rate,
+            gamma=budget.gamma,
+            gae_lambda=budget.gae_lambda,
+            clip_range=budget.clip_range,
+            ent_coef=budget.ent_coef,
+            seed=request.seed,
+            device="cpu",
+            verbose=0,
+            policy_kwargs={
+                "lstm_hidden_size": config.lstm_hidden,
+                "n_lstm_layers": 1,
+                "net_arch": {"pi": list(config.net_arch), "vf": list(config.net_arch)},
+                "log_std_init": budget.log_std_init,
+            },
         )
         model.learn(total_timesteps=budget.total_timesteps, callback=Progress())
         policy = export_policy(model, config)
@@ -213,16 +231,23 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
     save_policy(policy, config, out)
     wall_s = time.monotonic() - start
     provenance = Provenance(
-        command=request.command or f"scftc train --controller e2e_ppo --seed {request.seed} "
-        f"--budget {request.budget}",
-        seed=request.seed, budget=request.budget, train_settled_rate=train_rate,
+        command=request.command
+        or f"scftc train --controller e2e_ppo --seed {request.seed} --budget {request.budget}",
+        seed=request.seed,
+        budget=request.budget,
+        train_settled_rate=train_rate,
         notes=f"sb3-contrib RecurrentPPO (MlpLstmPolicy), {model.num_timesteps} env steps on train "
         f"classes {list(CLASSES)}; wall {wall_s:.0f} s on CPU (1 thread); "
         "train_settled_rate = mean settled rate over the pinned train cells of those classes",
     )
-    params = {"config": config.to_dict(), "budget": asdict(budget), "reward_normalization": True,
-              "rollout_mean_episode_return": [round(r, 3) for r in returns[:: max(1, len(returns) // 50)]],
-              "final_rollout_return": round(returns[-1], 3) if returns else None,
-              "export_max_abs_diff": mismatch, "weights_file": Path(out).name}
+    params = {
+        "config": config.to_dict(),
+        "budget": asdict(budget),
+        "reward_normalization": True,
+        "rollout_mean_episode_return": [round(r, 3) for r in returns[:: max(1, len(returns) // 50)]],
+        "final_rollout_return": round(returns[-1], 3) if returns else None,
+        "export_max_abs_diff": mismatch,
+        "weights_file": Path(out).name,
+    }
     save_params("e2e_ppo", params, provenance, Path(out).with_suffix(".yaml"))
     return TrainReport("e2e_ppo", Path(out), train_rate, {"wall_s": wall_s, "returns": returns})

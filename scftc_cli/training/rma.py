@@ -61,10 +61,30 @@ class RMABudget:
 
 
 BUDGETS: dict[str, RMABudget] = {
-    "quick": RMABudget(iterations=12, episodes=64, grad_steps=6, minibatch=96, buffer_iterations=4,
-                       teacher_fraction=0.5, lr=3e-3, eval_every=4, eval_faults=5, eval_seeds=2),
-    "full": RMABudget(iterations=160, episodes=256, grad_steps=14, minibatch=256, buffer_iterations=8,
-                      teacher_fraction=0.25, lr=3e-3, eval_every=20, eval_faults=20, eval_seeds=5),
+    "quick": RMABudget(
+        iterations=12,
+        episodes=64,
+        grad_steps=6,
+        minibatch=96,
+        buffer_iterations=4,
+        teacher_fraction=0.5,
+        lr=3e-3,
+        eval_every=4,
+        eval_faults=5,
+        eval_seeds=2,
+    ),
+    "full": RMABudget(
+        iterations=160,
+        episodes=256,
+        grad_steps=14,
+        minibatch=256,
+        buffer_iterations=8,
+        teacher_fraction=0.25,
+        lr=3e-3,
+        eval_every=20,
+        eval_faults=20,
+        eval_seeds=5,
+    ),
 }
 CLASSES = {"rma_student": ("sign", "gain"), "rma_dob": ("sign", "gain", "gain_bias")}
 
@@ -77,8 +97,17 @@ def sample_train_episodes(rng: np.random.Generator, n: int, classes: tuple[str, 
         gains[e], biases[e], scales[e] = sample_fault(split, classes[rng.integers(len(classes))], rng)
     sigma0 = rng.uniform(-plant.sigma0_half_width, plant.sigma0_half_width, (n, 3))
     omega0 = rng.uniform(-plant.omega0_half_width_rad_s, plant.omega0_half_width_rad_s, (n, 3))
-    return Episodes("train", "mixed", None, ActuatorFault(gains, biases, scales), sigma0, omega0,
-                    None, np.arange(n), np.zeros(n, dtype=int))
+    return Episodes(
+        "train",
+        "mixed",
+        None,
+        ActuatorFault(gains, biases, scales),
+        sigma0,
+        omega0,
+        None,
+        np.arange(n),
+        np.zeros(n, dtype=int),
+    )
 
 
 class _DaggerController(StudentController):
@@ -131,7 +160,8 @@ def train_student(request: TrainRequest) -> TrainReport:
     name, budget = request.controller, BUDGETS[request.budget]
     classes = CLASSES[name]
     config = StudentConfig(
-        hidden=budget.hidden, latch=LatchConfig(),
+        hidden=budget.hidden,
+        latch=LatchConfig(),
         observer_gain=OBSERVER_GAIN if name == "rma_dob" else 0.0,
         bias_invariant=name == "rma_dob",
     )
@@ -190,14 +220,20 @@ def train_student(request: TrainRequest) -> TrainReport:
     save_student(model, config, out)
     wall_s = time.monotonic() - start
     provenance = Provenance(
-        command=request.command or f"scftc train --controller {name} --seed {request.seed} "
-        f"--budget {request.budget}",
-        seed=request.seed, budget=request.budget, train_settled_rate=train_rate,
+        command=request.command
+        or f"scftc train --controller {name} --seed {request.seed} --budget {request.budget}",
+        seed=request.seed,
+        budget=request.budget,
+        train_settled_rate=train_rate,
         notes=f"DAgger on train classes {list(classes)}; wall {wall_s:.0f} s on CPU (1 thread); "
         "train_settled_rate = mean settled rate over the pinned train cells of those classes",
     )
-    params = {"config": config.to_dict(), "budget": asdict(budget), "history": history,
-              "weights_file": Path(out).name}
+    params = {
+        "config": config.to_dict(),
+        "budget": asdict(budget),
+        "history": history,
+        "weights_file": Path(out).name,
+    }
     save_params(name, params, provenance, Path(out).with_suffix(".yaml"))
     return TrainReport(name, Path(out), train_rate, {"wall_s": wall_s, "history": history})
 
