@@ -3,9 +3,8 @@
 Each iteration flies a fresh batch of train-split episodes with the student's own latched
 estimate in the loop (mixed, early on, with episodes driven by the teacher's true ``theta``), so
 that the student learns on the states it will itself visit; the recorded feature sequences are
-aggregated in a replay buffer and the GRU regresses the true ``theta = g/f`` at every step
-(cross-entropy on its sign plus a Huber loss on ``log |theta|``: the closed loop cares about
-the sign and the ratio ``theta / theta_hat``).
+aggregated in a replay buffer and the student's least-squares fit regresses the true
+``theta = g/f`` at every step (``student_loss``).
 ``rma_dob``'s gain student flies with train-split biases and the disturbance observer in the
 loop, so the estimate it learns is the one the observer composes with, and reads only features
 that a constant bias cannot shift (``BIASED_FEATURES`` in ``baselines/rma.py``).
@@ -147,12 +146,16 @@ def settled_rate(
 
 
 def student_loss(model: ThetaStudent, x: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
-    """Cross-entropy on the sign plus Huber on ``log |theta|``, over every step of the sequences
-    ``x`` ``(B, T, F)`` of axes whose true authority is ``theta`` ``(B,)``."""
+    """Over every step of the sequences ``x`` ``(B, T, F)`` of axes whose true authority is
+    ``theta`` ``(B,)``: Huber on the fit's relative error ``(theta_hat - theta) / |theta|`` (the
+    closed loop cares about the ratio), plus cross-entropy on the prior's sign and Huber on its
+    ``log |theta|`` (so that the guess made before the data speak is as good as it can be)."""
     target = theta[:, None].expand(x.shape[:2])
-    logit, log_mag, _ = model.heads(x)
-    loss = functional.binary_cross_entropy_with_logits(logit, (target > 0).float())
-    return loss + functional.smooth_l1_loss(log_mag, target.abs().clamp_min(0.05).log())
+    logit, log_mag, theta_hat, _ = model.heads(x)
+    relative_error = (theta_hat - target) / target.abs().clamp_min(0.05)
+    fit = functional.smooth_l1_loss(relative_error, torch.zeros_like(target))
+    prior = functional.binary_cross_entropy_with_logits(logit, (target > 0).float())
+    return fit + prior + functional.smooth_l1_loss(log_mag, target.abs().clamp_min(0.05).log())
 
 
 def train_student(request: TrainRequest) -> TrainReport:

@@ -15,7 +15,7 @@ from scftc_cli.baselines.observer import TorqueMeter
 from scftc_cli.baselines.rma import StudentConfig, StudentController, ThetaStudent, load_student
 from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.params import WEIGHTS_DIR
-from scftc_cli.sim.faults import draw_episodes
+from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.training.rma import OBSERVER_GAIN
 
@@ -50,6 +50,32 @@ def test_student_estimate_moves_toward_true_theta_on_held_out_faults(name: str) 
     assert end < 0.3 * start, (start, end)  # ~1.6 at the prior, ~0.06-0.3 once identified
     sign_ok = np.sign(theta_hat[:, -1]) == np.sign(episodes.fault.theta)
     assert sign_ok.mean() > 0.95
+
+
+@pytest.mark.parametrize("name", ["rma_student", "rma_dob"])
+def test_student_identifies_authorities_far_outside_the_train_range(name: str) -> None:
+    # Train |theta| spans [0.25, 1.875]; the held-out split reaches 0.13 and 2.86. The student's
+    # least-squares head must follow the data there, not clamp to what it was trained on.
+    gains = np.array([[0.12, -2.8, 1.0], [-0.15, 0.13, 2.6], [2.9, 0.2, -0.14], [-0.12, -2.5, 0.7]])
+    n = len(gains)
+    biases = np.zeros((n, 3)) if name == "rma_student" else np.array([[0.05, -0.1, 0.08]] * n)
+    rng = np.random.default_rng(7)
+    episodes = Episodes(
+        "train",
+        "extrapolation",
+        None,
+        ActuatorFault(gains, biases, np.ones(n)),
+        rng.uniform(-0.5, 0.5, (n, 3)),
+        rng.uniform(-0.02, 0.02, (n, 3)),
+        None,
+        np.arange(n),
+        np.zeros(n, dtype=int),
+    )
+    model, config = load_student(name)
+    controller = _Recording(model=model, config=config)
+    rollout(controller, episodes)
+    final = controller.estimates[-1]
+    assert np.all(np.abs(final / gains - 1.0) < 0.05), final
 
 
 def test_latch_freezes_the_estimate() -> None:
