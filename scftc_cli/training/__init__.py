@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Literal
 
 from scftc_cli.errors import UnknownNameError
+from scftc_cli.params import Provenance
 
 Budget = Literal["quick", "full"]
 
@@ -37,6 +38,18 @@ class TrainRequest:
     out: Path | None = None
     command: str = ""
     on_progress: Callable[[float, str], None] = field(default=lambda _f, _m: None)
+
+    def provenance(self, train_settled_rate: float, notes: str) -> Provenance:
+        """The provenance of this run's artifact (the command defaults to the canonical one)."""
+        canonical = f"scftc train --controller {self.controller} --seed {self.seed} --budget {self.budget}"
+        command = self.command or canonical
+        return Provenance(
+            command=command,
+            seed=self.seed,
+            budget=self.budget,
+            train_settled_rate=train_settled_rate,
+            notes=notes,
+        )
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from scftc_cli.baselines.ppo import (
     weights_path,
 )
 from scftc_cli.errors import ScftcError
-from scftc_cli.params import Provenance, save_params
+from scftc_cli.params import save_params
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.faults import draw_episodes
 from scftc_cli.sim.rollout import rollout
@@ -230,13 +230,9 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
     out = request.out or weights_path()
     save_policy(policy, config, out)
     wall_s = time.monotonic() - start
-    provenance = Provenance(
-        command=request.command
-        or f"scftc train --controller e2e_ppo --seed {request.seed} --budget {request.budget}",
-        seed=request.seed,
-        budget=request.budget,
-        train_settled_rate=train_rate,
-        notes=f"sb3-contrib RecurrentPPO (MlpLstmPolicy), {model.num_timesteps} env steps on train "
+    provenance = request.provenance(
+        train_rate,
+        f"sb3-contrib RecurrentPPO (MlpLstmPolicy), {model.num_timesteps} env steps on train "
         f"classes {list(CLASSES)}; wall {wall_s:.0f} s on CPU (1 thread); "
         "train_settled_rate = mean settled rate over the pinned train cells of those classes",
     )

@@ -32,7 +32,7 @@ from scftc_cli.baselines.rma import (
     save_student,
     weights_path,
 )
-from scftc_cli.params import Provenance, save_params
+from scftc_cli.params import save_params
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes, sample_fault
 from scftc_cli.sim.rollout import rollout
@@ -222,13 +222,9 @@ def train_student(request: TrainRequest) -> TrainReport:
     out = request.out or weights_path(name)
     save_student(model, config, out)
     wall_s = time.monotonic() - start
-    provenance = Provenance(
-        command=request.command
-        or f"scftc train --controller {name} --seed {request.seed} --budget {request.budget}",
-        seed=request.seed,
-        budget=request.budget,
-        train_settled_rate=train_rate,
-        notes=f"DAgger on train classes {list(classes)}; wall {wall_s:.0f} s on CPU (1 thread); "
+    provenance = request.provenance(
+        train_rate,
+        f"DAgger on train classes {list(classes)}; wall {wall_s:.0f} s on CPU (1 thread); "
         "train_settled_rate = mean settled rate over the pinned train cells of those classes",
     )
     params = {

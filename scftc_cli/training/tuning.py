@@ -38,7 +38,7 @@ from scftc_cli.baselines.pid import NAME as PID_NAME
 from scftc_cli.baselines.pid import PID, PIDParams
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
-from scftc_cli.params import Provenance, save_params
+from scftc_cli.params import save_params
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes
 from scftc_cli.sim.rollout import rollout
@@ -108,51 +108,76 @@ BUDGETS: dict[str, TuneBudget] = {
 }
 
 SPECS: dict[str, TuneSpec] = {
-    PID_NAME: TuneSpec(PID_NAME, PIDParams, PID, (
-        Dim("kp_s2", 0.005, 0.5, log=True),
-        Dim("kd_s", 0.03, 1.5, log=True),
-        Dim("ki_s3", 1e-5, 1e-2, log=True),
-        Dim("integral_cap", 0.05, 1.0),
-        Dim("integrate_below", 0.01, 1.0, log=True),
-    )),
-    ADAPTIVE: TuneSpec(ADAPTIVE, AdaptiveParams, ClassicalAdaptive, (
-        Dim("vote_min_da", 0.01, 0.3, log=True),
-        Dim("vote_threshold", 1.0, 8.0),
-        Dim("gamma_m", 0.05, 1.9, log=True),
-        Dim("gamma_beta", 0.0, 1.5),
-        Dim("sigma_mod", 0.0, 0.1),
-        Dim("dead_zone", 0.0, 0.02),
-        Dim("dither_amp", 0.0, 0.5),
-        Dim("dither_steps", 0, 30, integer=True),
-    )),
-    ICL: TuneSpec(ICL, ICLParams, ICLAdaptive, (
-        Dim("window", 1, 8, integer=True),
-        Dim("stack_size", 3, 20, integer=True),
-        Dim("gamma_cl", 0.1, 1.9, log=True),  # >= 0.1: the concurrent-learning term stays in the law
-        Dim("gamma_inst", 0.0, 1.9),
-        Dim("dither_amp", 0.0, 0.6),
-        Dim("dither_steps", 0, 80, integer=True),
-    )),
-    NUSSBAUM: TuneSpec(NUSSBAUM, NussbaumParams, Nussbaum, (
-        Dim("gamma", 0.005, 2.0, log=True),
-        Dim("zeta0", 0.2, 1.5),
-        Dim("dead_zone", 0.001, 0.2, log=True),
-        Dim("gamma_d", 0.0, 2.0),
-        Dim("kp_s2", 0.01, 0.1, log=True),
-        Dim("kd_s", 0.05, 0.5, log=True),
-    )),
-    RLS: TuneSpec(RLS, RLSParams, RLSDob, (
-        Dim("forgetting", 0.9, 1.0),
-        Dim("p0_theta", 1.0, 1e4, log=True),
-        Dim("p0_beta", 0.1, 1e3, log=True),
-        Dim("p_max", 10.0, 1e5, log=True),
-        Dim("dither_amp", 0.0, 0.5),
-        Dim("dither_steps", 0, 20, integer=True),
-        Dim("latch_min_steps", 2, 30, integer=True),
-        Dim("latch_tol", 1e-4, 0.1, log=True),
-        Dim("latch_prior_ratio", 1e-4, 0.1, log=True),
-        Dim("observer_gain", 0.01, 0.5, log=True),
-    )),
+    PID_NAME: TuneSpec(
+        PID_NAME,
+        PIDParams,
+        PID,
+        (
+            Dim("kp_s2", 0.005, 0.5, log=True),
+            Dim("kd_s", 0.03, 1.5, log=True),
+            Dim("ki_s3", 1e-5, 1e-2, log=True),
+            Dim("integral_cap", 0.05, 1.0),
+            Dim("integrate_below", 0.01, 1.0, log=True),
+        ),
+    ),
+    ADAPTIVE: TuneSpec(
+        ADAPTIVE,
+        AdaptiveParams,
+        ClassicalAdaptive,
+        (
+            Dim("vote_min_da", 0.01, 0.3, log=True),
+            Dim("vote_threshold", 1.0, 8.0),
+            Dim("gamma_m", 0.05, 1.9, log=True),
+            Dim("gamma_beta", 0.0, 1.5),
+            Dim("sigma_mod", 0.0, 0.1),
+            Dim("dead_zone", 0.0, 0.02),
+            Dim("dither_amp", 0.0, 0.5),
+            Dim("dither_steps", 0, 30, integer=True),
+        ),
+    ),
+    ICL: TuneSpec(
+        ICL,
+        ICLParams,
+        ICLAdaptive,
+        (
+            Dim("window", 1, 8, integer=True),
+            Dim("stack_size", 3, 20, integer=True),
+            Dim("gamma_cl", 0.1, 1.9, log=True),  # >= 0.1: the concurrent-learning term stays in the law
+            Dim("gamma_inst", 0.0, 1.9),
+            Dim("dither_amp", 0.0, 0.6),
+            Dim("dither_steps", 0, 80, integer=True),
+        ),
+    ),
+    NUSSBAUM: TuneSpec(
+        NUSSBAUM,
+        NussbaumParams,
+        Nussbaum,
+        (
+            Dim("gamma", 0.005, 2.0, log=True),
+            Dim("zeta0", 0.2, 1.5),
+            Dim("dead_zone", 0.001, 0.2, log=True),
+            Dim("gamma_d", 0.0, 2.0),
+            Dim("kp_s2", 0.01, 0.1, log=True),
+            Dim("kd_s", 0.05, 0.5, log=True),
+        ),
+    ),
+    RLS: TuneSpec(
+        RLS,
+        RLSParams,
+        RLSDob,
+        (
+            Dim("forgetting", 0.9, 1.0),
+            Dim("p0_theta", 1.0, 1e4, log=True),
+            Dim("p0_beta", 0.1, 1e3, log=True),
+            Dim("p_max", 10.0, 1e5, log=True),
+            Dim("dither_amp", 0.0, 0.5),
+            Dim("dither_steps", 0, 20, integer=True),
+            Dim("latch_min_steps", 2, 30, integer=True),
+            Dim("latch_tol", 1e-4, 0.1, log=True),
+            Dim("latch_prior_ratio", 1e-4, 0.1, log=True),
+            Dim("observer_gain", 0.01, 0.5, log=True),
+        ),
+    ),
 }
 
 
@@ -242,13 +267,9 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
         + ", ".join(f"{c} {v:.3f}" for c, v in scores.items())
         + f"; wall {wall_s:.0f} s"
     )
-    provenance = Provenance(
-        command=request.command or f"scftc train --controller {spec.controller} --seed {request.seed} "
-        f"--budget {request.budget}",
-        seed=request.seed,
-        budget=request.budget,
-        train_settled_rate=train_rate,
-        notes=notes,
+    provenance = request.provenance(
+        train_rate,
+        notes,
     )
     path = save_params(spec.controller, dataclasses.asdict(best), provenance, request.out)
     request.on_progress(1.0, "done")
