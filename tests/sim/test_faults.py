@@ -77,8 +77,9 @@ def test_sign_pattern_count_is_uniform_over_allowed_counts():
 def test_same_seeds_give_the_same_episodes():
     a, b = (
         draw_episodes("test", "gain_bias", n_faults=5, n_seeds=3),
-        draw_episodes("test", "gain_bias", n_faults=5, n_seeds=3),
+        draw_episodes.__wrapped__("test", "gain_bias", n_faults=5, n_seeds=3),  # a fresh draw
     )
+    assert a is not b
     for x, y in [
         (a.fault.gain, b.fault.gain),
         (a.fault.bias, b.fault.bias),
@@ -87,6 +88,14 @@ def test_same_seeds_give_the_same_episodes():
         (a.fault.inertia_scale, b.fault.inertia_scale),
     ]:
         np.testing.assert_array_equal(x, y)
+
+
+def test_cached_cells_are_shared_and_read_only():
+    a = draw_episodes("test", "gain", n_faults=5, n_seeds=3)
+    assert draw_episodes("test", "gain", n_faults=5, n_seeds=3) is a
+    for array in (a.fault.gain, a.fault.bias, a.fault.inertia_scale, a.sigma0, a.omega0_rad_s):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0.0
 
 
 def test_a_cell_prefix_does_not_depend_on_its_size():
