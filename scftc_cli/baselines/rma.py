@@ -2,8 +2,9 @@
 
 RMA (Kumar et al. 2021, arXiv 2107.04034) trains a privileged teacher and a student that infers
 the teacher's privileged input from the history of commands and responses. Here the teacher is the
-analytic law fed the true ``theta = g/f`` (``teacher``), and the student is a GRU that regresses
-the *identifiable* per-axis authority ``theta`` online (SPEC section 4). The source study
+analytic law fed the true ``theta = g/f`` (``teacher``), and the student is a GRU-driven
+least-squares estimator of the *identifiable* per-axis authority ``theta`` (SPEC section 4),
+online. The source study
 regressed ``[g0, g1, g2, f-1]`` instead, which is ill-posed: scaling ``g``, ``b`` and ``f``
 together leaves every trajectory unchanged, so that regression can only learn a conditional mean.
 
@@ -24,7 +25,7 @@ The student's output layer is a least-squares fit whose weights and prior the GR
 (``ThetaStudent``): a plain regression head cannot answer outside the authorities it was trained
 on, and the held-out split's go below the train range by construction. Measured: the first,
 direct-regression student estimated held-out axes of ``|theta|`` 0.13-0.25 at ~0.27-0.36
-(``rma_dob`` 86.0 % settled on ``gain_bias``); the fit identifies them to ~0.1 % (93.6 %).
+(``rma_dob`` 86.0 % settled on ``gain_bias``); the fit identifies them to a median 0.1 % (93.6 %).
 
 Weights live in ``scftc_cli/weights/<name>.pt`` with a sidecar ``<name>.yaml`` (provenance);
 ``scftc train --controller rma_student|rma_dob`` regenerates them.
