@@ -1,6 +1,7 @@
 # The two commands of the README quick start. Each sets up .venv on first use.
 #   make reproduce   -> the study's battery and sensor tables and figures, in results/
-#   make test        -> lint, schema check, the test suite, leaderboard verify (what .ci/run runs)
+#   make test        -> lint, format and type checks, schema check, the test suite, leaderboard verify
+#                       (what .ci/run runs)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -21,6 +22,8 @@ reproduce: setup
 
 test: setup
 	$(BIN)/ruff check scftc_cli tests benchmarks
+	$(BIN)/ruff format --check scftc_cli tests benchmarks
+	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
 	$(BIN)/pytest -q
 	$(BIN)/scftc leaderboard verify
@@ -28,6 +31,7 @@ test: setup
 lint: setup
 	$(BIN)/ruff check scftc_cli tests benchmarks
 	$(BIN)/ruff format --check scftc_cli tests benchmarks
+	$(BIN)/mypy
 
 bench: setup
 	$(BIN)/python benchmarks/throughput.py

@@ -18,22 +18,21 @@ import platform
 import time
 from pathlib import Path
 
-from scftc_cli.baselines.base import make_controller
-from scftc_cli.evaluate import Cell, evaluate_cell, plant_factory
+from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.records import CellResult
-from scftc_cli.spec import SPEC
-
-BACKENDS = ("numpy", "reference", "basilisk")
+from scftc_cli.registry import make_controller
+from scftc_cli.sim import BACKENDS
+from scftc_cli.spec import V1 as SPEC
 
 
 def time_cell(backend: str, cell: Cell, controller: str, repeats: int) -> tuple[float, CellResult]:
     """Best wall time (s) of one full cell on ``backend``, and the scored cell."""
-    plant = plant_factory(backend)
-    evaluate_cell(make_controller(controller), cell, n_faults=1, n_seeds=1, plant=plant)  # warm-up (JIT)
+    make = lambda _cell: make_controller(controller)  # noqa: E731
+    evaluate_cell(make, SPEC, cell, n_faults=1, n_seeds=1, backend=backend)  # warm-up (JIT)
     best = float("inf")
     for _ in range(max(1, repeats)):
         start = time.perf_counter()
-        result = evaluate_cell(make_controller(controller), cell, plant=plant)
+        result = evaluate_cell(make, SPEC, cell, backend=backend).result
         best = min(best, time.perf_counter() - start)
     return best, result
 
@@ -49,7 +48,7 @@ def main() -> None:
     args = parser.parse_args()
 
     cell = Cell("test", args.fault_class)
-    env_steps = SPEC.n_faults * SPEC.n_seeds * SPEC.plant.steps
+    env_steps = SPEC.n_faults * SPEC.n_seeds * SPEC.steps
     rows = {}
     for backend in BACKENDS:
         seconds, result = time_cell(backend, cell, args.controller, args.repeats)
@@ -70,7 +69,7 @@ def main() -> None:
     print(f"numpy / basilisk: {ratio:.1f}x faster (same k on every gate: {same_k})")
 
     if args.out is not None:
-        from scftc_cli.sim.basilisk import basilisk_version
+        from scftc_cli.sim.v1.basilisk import basilisk_version
 
         doc = {
             "benchmark_version": SPEC.version,

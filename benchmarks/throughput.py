@@ -9,8 +9,8 @@ Measures (best of a few repeats, wall clock):
   step relative to ``pd`` on the same episodes;
 - the wall time of a full ``--class all`` evaluation (4 cells x 500 episodes) for ``pd`` and
   ``rma_dob``;
-- with Basilisk installed, one full 500-episode ``pd`` cell through Basilisk and the ratio.
-Ratios are the portable numbers; absolute figures depend on the machine and its load.
+Basilisk's speed is ``benchmarks/backends.py``'s business. Ratios are the portable numbers;
+absolute figures depend on the machine and its load.
 """
 
 from __future__ import annotations
@@ -23,18 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
-from scftc_cli.baselines.base import make_controller, registry
-from scftc_cli.evaluate import Cell, evaluate, evaluate_cell, plant_factory
-from scftc_cli.sim.dynamics import NumpyPlant
-from scftc_cli.sim.fast import FastPlant
-from scftc_cli.sim.faults import Episodes, draw_episodes
+from scftc_cli.evaluate import Cell, evaluate_cells
+from scftc_cli.registry import make_controller, registry
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.spec import SPEC
+from scftc_cli.sim.v1.faults import RigidEpisodes, draw_episodes
+from scftc_cli.spec import V1
 
-STEPS = SPEC.plant.steps
+STEPS = V1.steps
 
 
-def tiled_episodes(n: int) -> Episodes:
+def tiled_episodes(n: int) -> RigidEpisodes:
     """``n`` episodes made by tiling the held-out ``gain`` cell (drawing 100 000 fresh seeds would
     time the sampler, not the simulator)."""
     cell = draw_episodes("test", "gain")
@@ -50,10 +48,10 @@ def best_time(fn, repeats: int) -> float:
     return min(times)
 
 
-def env_steps_per_s(controller: str, n: int, plant, repeats: int) -> float:
+def env_steps_per_s(controller: str, n: int, backend: str, repeats: int) -> float:
     episodes = tiled_episodes(n)
-    rollout(make_controller(controller), episodes.subset(slice(0, min(n, 8))), plant_factory=plant)
-    seconds = best_time(lambda: rollout(make_controller(controller), episodes, plant_factory=plant), repeats)
+    rollout(make_controller(controller), episodes.subset(slice(0, min(n, 8))), backend=backend)
+    seconds = best_time(lambda: rollout(make_controller(controller), episodes, backend=backend), repeats)
     return n * STEPS / seconds
 
 
@@ -70,8 +68,8 @@ def main() -> None:
 
     rows = []
     for n in batches:
-        fast = env_steps_per_s("pd", n, FastPlant, repeats)
-        ref = env_steps_per_s("pd", n, NumpyPlant, 1 if n >= 10_000 else repeats)
+        fast = env_steps_per_s("pd", n, "numpy", repeats)
+        ref = env_steps_per_s("pd", n, "reference", 1 if n >= 10_000 else repeats)
         rows.append(
             {
                 "batch": n,
@@ -101,34 +99,11 @@ def main() -> None:
             f"rma_dob at batch 500: {1e3 * t_rma / STEPS:.3f} ms/step vs pd {1e3 * t_pd / STEPS:.3f} ms/step"
         )
 
-    cells = [Cell("test", c) for c in SPEC.fault_classes]
+    cells = [Cell("test", c) for c in V1.fault_classes]
     for name in ("pd", "rma_dob") if have_rma_dob else ("pd",):
-        seconds = best_time(lambda name=name: evaluate(name, cells), 1)
+        seconds = best_time(lambda name=name: evaluate_cells(lambda _c: make_controller(name), V1, cells), 1)
         results[f"eval_class_all_{name}_s"] = seconds
-        print(f"eval --controller {name} --class all: {seconds:.2f} s")
-
-    try:
-        basilisk = plant_factory("basilisk")
-    except Exception as err:  # noqa: BLE001  (report, don't fail, when the extra is missing)
-        results["basilisk"] = f"skipped: {err}"
-        print(results["basilisk"])
-    else:
-        cell = Cell("test", "gain")
-        t_fast = best_time(lambda: evaluate_cell(make_controller("pd"), cell), repeats)
-        t_bsk = best_time(lambda: evaluate_cell(make_controller("pd"), cell, plant=basilisk), 1)
-        n = SPEC.n_faults * SPEC.n_seeds
-        results["basilisk"] = {
-            "cell_episodes": n,
-            "fast_s": t_fast,
-            "basilisk_s": t_bsk,
-            "ratio": t_bsk / t_fast,
-            "fast_env_steps_per_s": n * STEPS / t_fast,
-            "basilisk_env_steps_per_s": n * STEPS / t_bsk,
-        }
-        print(
-            f"one 500-episode pd cell: fast {t_fast:.3f} s, Basilisk {t_bsk:.1f} s, "
-            f"ratio x{t_bsk / t_fast:.0f}"
-        )
+        print(f"eval --controller {name} --class all (library, warm): {seconds:.2f} s")
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2) + "\n")

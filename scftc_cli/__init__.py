@@ -2,5 +2,4 @@
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-BENCHMARK_VERSION = "scftc-v1"
+__version__ = "0.2.0"

@@ -1,10 +1,17 @@
-"""Result records: the pydantic models that land on disk and on stdout (SPEC section 6)."""
+"""Result records: what lands on disk and on stdout.
+
+``CellResult`` and ``EvalResult`` are the JSON contract of ``scftc eval --format json``;
+``EpisodeOutcomes`` holds a cell's per-episode outcomes (arrays) for paired comparisons and
+per-episode logs; ``RunProvenance`` says what code, libraries and artifacts produced a result.
+"""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from dataclasses import dataclass, fields
+from pathlib import Path
 
-from scftc_cli import BENCHMARK_VERSION
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 
 class GateStat(BaseModel):
@@ -39,15 +46,114 @@ class CellResult(BaseModel):
     def key(self) -> tuple[str, str, str | None]:
         return (self.split, self.fault_class, self.sensor)
 
+    @property
+    def label(self) -> str:
+        """``gain_bias`` or ``sign+dropout``."""
+        return self.fault_class if self.sensor is None else f"{self.fault_class}+{self.sensor}"
+
+
+class RunProvenance(BaseModel):
+    """What produced a result: enough to rerun it, or to see why a rerun differs."""
+
+    package_version: str
+    git_commit: str | None = Field(description="HEAD of the checkout the package ran from, if any.")
+    git_dirty: bool | None = None
+    python: str
+    libraries: dict[str, str] = Field(description="numpy, numba, scipy, torch, bsk versions (installed).")
+    artifacts: dict[str, str] = Field(
+        default_factory=dict, description="sha256 of each parameter or weight file the controller loaded."
+    )
+    controller_file_sha256: str | None = Field(default=None, description="For a controller given as a file.")
+
 
 class EvalResult(BaseModel):
     """The JSON document ``scftc eval --format json`` prints."""
 
-    benchmark_version: str = BENCHMARK_VERSION
+    benchmark_version: str
     controller: str
     privileged: bool
     backend: str
     cells: list[CellResult]
+    provenance: RunProvenance | None = None
 
     def dump(self) -> dict:
-        return self.model_dump(mode="json", by_alias=True)
+        return self.model_dump(mode="json", by_alias=True, exclude_none=False)
+
+
+@dataclass(frozen=True)
+class EpisodeOutcomes:
+    """Per-episode outcomes of a batch, all ``(n,)``: the three gates (bool), the final true
+    pointing error (deg) and the settling time (s; NaN where not settled at the end)."""
+
+    settled: np.ndarray
+    operational: np.ndarray
+    touch_once: np.ndarray
+    final_error_deg: np.ndarray
+    settling_time_s: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.settled)
+
+    @classmethod
+    def concat(cls, parts: list[EpisodeOutcomes]) -> EpisodeOutcomes:
+        """The outcomes of consecutive slices of one batch, in order."""
+        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)})
+
+
+LIBRARIES = ("numpy", "numba", "scipy", "pydantic", "torch", "bsk", "gymnasium")
+
+
+def collect_provenance(
+    artifacts: list[Path] | tuple[Path, ...] = (), controller_file: Path | None = None
+) -> RunProvenance:
+    """The provenance of a result produced now, from this installation.
+
+    Reads installed versions from package metadata (nothing is imported) and asks git for the
+    checkout's commit when the package runs from one.
+    """
+    import hashlib
+    import platform
+    import subprocess
+    from importlib.metadata import PackageNotFoundError, version
+
+    from scftc_cli import __version__
+
+    def installed(name: str) -> str | None:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return None
+
+    root = Path(__file__).resolve().parent.parent
+    commit, dirty = None, None
+    if (root / ".git").exists():
+        try:
+            git = ["git", "-C", str(root)]
+            commit = (
+                subprocess.run(
+                    [*git, "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5
+                ).stdout.strip()
+                or None
+            )
+            status = subprocess.run(
+                [*git, "status", "--porcelain", "--untracked-files=no"],
+                capture_output=True,
+                text=True,
+                timeout=5,
+            )
+            dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
+        except (OSError, subprocess.SubprocessError):
+            commit, dirty = None, None
+    sha = lambda path: hashlib.sha256(Path(path).read_bytes()).hexdigest()  # noqa: E731
+    return RunProvenance(
+        package_version=__version__,
+        git_commit=commit,
+        git_dirty=dirty,
+        python=platform.python_version(),
+        libraries={name: v for name in LIBRARIES if (v := installed(name)) is not None},
+        artifacts={
+            str(Path(p).relative_to(root) if Path(p).is_relative_to(root) else p): sha(p) for p in artifacts
+        },
+        controller_file_sha256=sha(controller_file) if controller_file is not None else None,
+    )

@@ -1,13 +1,19 @@
-"""Rendering of records as rich tables and markdown. The only module that imports rich."""
+"""Rendering helpers shared by every table: rates with intervals, markdown, rich tables.
+
+The only module (with ``commands/``) that imports rich; the board's and the study's renderers
+build on ``pct`` and ``markdown_lines`` here.
+"""
 
 from __future__ import annotations
 
-from rich.console import Console
-from rich.table import Table
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from scftc_cli.records import CellResult, EvalResult, GateStat
+from scftc_cli.spec import GATES
 
-GATES = ("settled", "operational", "touch_once")
+if TYPE_CHECKING:
+    from rich.table import Table
 
 
 def pct(stat: GateStat) -> str:
@@ -15,15 +21,15 @@ def pct(stat: GateStat) -> str:
     return f"{100 * stat.rate:.1f} [{100 * stat.ci_low:.1f}, {100 * stat.ci_high:.1f}]"
 
 
-def _cell_row(cell: CellResult) -> list[str]:
-    return [
-        cell.split,
-        cell.fault_class,
-        cell.sensor or "-",
-        f"{cell.settled.k}/{cell.n}",
-        *(pct(getattr(cell, gate)) for gate in GATES),
-        f"{cell.final_error_deg.median:.3g} / {cell.final_error_deg.mean:.3g}",
-    ]
+def markdown_lines(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    """A markdown table as lines (header, rule, rows)."""
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    return lines + ["| " + " | ".join(row) + " |" for row in rows]
+
+
+def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A markdown table as one string ending in a newline."""
+    return "\n".join(markdown_lines(headers, rows)) + "\n"
 
 
 HEADERS = (
@@ -38,7 +44,21 @@ HEADERS = (
 )
 
 
+def _cell_row(cell: CellResult) -> list[str]:
+    return [
+        cell.split,
+        cell.fault_class,
+        cell.sensor or "-",
+        f"{cell.settled.k}/{cell.n}",
+        *(pct(getattr(cell, gate)) for gate in GATES),
+        f"{cell.final_error_deg.median:.3g} / {cell.final_error_deg.mean:.3g}",
+    ]
+
+
 def eval_table(result: EvalResult) -> Table:
+    """``scftc eval``'s terminal table."""
+    from rich.table import Table
+
     flag = " (privileged: an upper bound, not ranked)" if result.privileged else ""
     table = Table(title=f"{result.controller}{flag} - {result.benchmark_version}, {result.backend}")
     for h in HEADERS:
@@ -48,12 +68,6 @@ def eval_table(result: EvalResult) -> Table:
     return table
 
 
-def markdown_table(headers: tuple[str, ...] | list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines) + "\n"
-
-
 def eval_markdown(result: EvalResult) -> str:
     flag = " (privileged)" if result.privileged else ""
     title = f"**{result.controller}**{flag} — {result.benchmark_version}, backend {result.backend}\n\n"
@@ -61,4 +75,6 @@ def eval_markdown(result: EvalResult) -> str:
 
 
 def print_table(table: Table) -> None:
+    from rich.console import Console
+
     Console(soft_wrap=False, width=160).print(table)

@@ -1,22 +1,25 @@
-"""The benchmark definition (SPEC.md sections 1-3) as one frozen object.
+"""Benchmark definitions as data: one frozen ``BenchmarkSpec`` per benchmark version.
 
-Every number that defines ``scftc-v1`` lives here and nowhere else, so that a change to any of
-them is visible in one diff and travels with every result as ``BENCHMARK_VERSION``.
+Every number that defines a benchmark version lives in its spec object and nowhere else, so a
+change to any of them is visible in one diff and travels with every result as the version string.
+The layers below take a spec (or its version string) instead of module-level constants: scoring
+reads ``spec.gates``, evaluation reads the taxonomy and cell sizes, the simulator reads the plant.
+The written definition is ``docs/benchmark.md``; a test checks that every number here appears there.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from scftc_cli import BENCHMARK_VERSION
+from scftc_cli.errors import UnknownNameError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 Split = Literal["train", "test"]
-FAULT_CLASSES: tuple[str, ...] = ("sign", "gain", "gain_bias", "loss")
-SENSOR_FAULTS: tuple[str, ...] = ("bias_0.1", "bias_0.2", "bias_0.3", "bias_0.5", "dropout", "stuck")
-SPLITS: tuple[str, ...] = ("test", "train")
+DEFAULT_BENCHMARK = "scftc-v1"
 
 
 class _Frozen(BaseModel):
@@ -36,6 +39,8 @@ class Interval(_Frozen):
         return self.hi - self.lo
 
     def contains(self, x: np.ndarray | float) -> np.ndarray:
+        import numpy as np  # not at module level: the command line's help needs no numpy
+
         x = np.asarray(x)
         above = x >= self.lo if self.lo_closed else x > self.lo
         below = x <= self.hi if self.hi_closed else x < self.hi
@@ -43,23 +48,32 @@ class Interval(_Frozen):
 
     def from_unit(self, u: np.ndarray) -> np.ndarray:
         """Map ``u`` in [0, 1) onto the interval, never onto an open end."""
+        import numpy as np
+
         if self.lo_closed:
             x = self.lo + u * self.length
             return np.minimum(x, self.hi if self.hi_closed else np.nextafter(self.hi, -np.inf))
         x = self.hi - u * self.length  # (lo, hi]: measure from the closed top end
         return np.maximum(x, np.nextafter(self.lo, np.inf))
 
+    def __str__(self) -> str:
+        return f"{'[' if self.lo_closed else '('}{self.lo:g}, {self.hi:g}{']' if self.hi_closed else ')'}"
+
 
 class IntervalSet(_Frozen):
-    """A disjoint union of intervals, sampled uniformly by length (SPEC section 2)."""
+    """A disjoint union of intervals, sampled uniformly by length (``docs/benchmark.md``)."""
 
     parts: tuple[Interval, ...]
 
     def contains(self, x: np.ndarray | float) -> np.ndarray:
+        import numpy as np
+
         x = np.asarray(x)
         return np.logical_or.reduce([p.contains(x) for p in self.parts])
 
     def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> np.ndarray:
+        import numpy as np
+
         lengths = np.array([p.length for p in self.parts])
         ends = np.cumsum(lengths)
         s = rng.random(size) * ends[-1]  # a position along the concatenated union
@@ -70,12 +84,16 @@ class IntervalSet(_Frozen):
             out[which == i] = part.from_unit(u[which == i])
         return out
 
+    def __str__(self) -> str:
+        return " U ".join(str(p) for p in self.parts)
 
-def _closed(lo: float, hi: float) -> IntervalSet:
+
+def closed(lo: float, hi: float) -> IntervalSet:
+    """``[lo, hi]``."""
     return IntervalSet(parts=(Interval(lo=lo, hi=hi),))
 
 
-def _outside(lo_a: float, lo_b: float, hi_a: float, hi_b: float) -> IntervalSet:
+def outside(lo_a: float, lo_b: float, hi_a: float, hi_b: float) -> IntervalSet:
     """``[lo_a, lo_b) U (hi_a, hi_b]``: the held-out band on both sides of a train range."""
     return IntervalSet(
         parts=(
@@ -85,18 +103,18 @@ def _outside(lo_a: float, lo_b: float, hi_a: float, hi_b: float) -> IntervalSet:
     )
 
 
-class SplitSpec(_Frozen):
-    """Parameter ranges of one split of the actuator-fault taxonomy."""
+class ObservationField(_Frozen):
+    """One block of the observation vector a controller receives every step."""
 
-    inertia_scale: IntervalSet
-    gain_magnitude: IntervalSet
-    reversed_axes: tuple[int, ...]
-    bias: IntervalSet
+    name: str
+    width: int
+    unit: str
 
 
-class PlantSpec(_Frozen):
-    """The rigid spacecraft and its episode (SPEC section 1)."""
+class RigidBodyPlant(_Frozen):
+    """``scftc-v1``'s testbed: a rigid body with three body-axis torques (docs/benchmark.md)."""
 
+    kind: Literal["rigid-body-torques"] = "rigid-body-torques"
     inertia_nominal_kgm2: tuple[float, float, float] = (10.0, 8.0, 6.0)
     dt_s: float = 0.5
     steps: int = 400
@@ -106,7 +124,7 @@ class PlantSpec(_Frozen):
 
 
 class GateSpec(_Frozen):
-    """Thresholds of the three gates on the true pointing error (SPEC section 3)."""
+    """Thresholds of the three gates on the true pointing error."""
 
     settled_deg: float = 0.2
     operational_deg: float = 5.0
@@ -114,33 +132,98 @@ class GateSpec(_Frozen):
     dwell_steps: int = 20
 
 
+class RigidBodySplit(_Frozen):
+    """Parameter ranges of one split of ``scftc-v1``'s actuator-fault taxonomy."""
+
+    inertia_scale: IntervalSet
+    gain_magnitude: IntervalSet
+    reversed_axes: tuple[int, ...]
+    bias: IntervalSet
+
+
+GATES: tuple[str, ...] = ("settled", "operational", "touch_once")
+
+
 class BenchmarkSpec(_Frozen):
-    version: str = BENCHMARK_VERSION
-    plant: PlantSpec = PlantSpec()
+    """Everything that defines one benchmark version.
+
+    Attributes:
+        version: the string every result carries, e.g. ``scftc-v1``.
+        plant: the testbed's physical constants (its ``kind`` selects the simulator).
+        observation: the blocks of the observation vector, in order.
+        action_dim: length of the command vector (each entry in [-1, 1]).
+        splits: the fault taxonomy's parameter ranges per split.
+        fault_classes: actuator classes, in table order.
+        sensor_faults: sensor classes, evaluated on top of ``sensor_base_class`` faults.
+        ranked_classes: the classes whose mean settled rate ranks deployable entries.
+        n_faults, n_seeds: a full cell is ``n_faults x n_seeds`` episodes.
+    """
+
+    version: str
+    title: str
+    plant: RigidBodyPlant
+    observation: tuple[ObservationField, ...]
+    action_dim: int
     gates: GateSpec = GateSpec()
-    splits: dict[str, SplitSpec]
-    fault_classes: tuple[str, ...] = FAULT_CLASSES
-    sensor_faults: tuple[str, ...] = SENSOR_FAULTS
+    splits: dict[str, RigidBodySplit]
+    fault_classes: tuple[str, ...]
+    sensor_faults: tuple[str, ...]
+    sensor_base_class: str = "sign"
+    ranked_classes: tuple[str, ...]
     n_faults: int = 50
     n_seeds: int = 10
     confidence: float = 0.95
 
+    @property
+    def obs_dim(self) -> int:
+        return sum(f.width for f in self.observation)
 
-SPEC = BenchmarkSpec(
+    @property
+    def episodes_per_cell(self) -> int:
+        return self.n_faults * self.n_seeds
+
+    @property
+    def steps(self) -> int:
+        return self.plant.steps
+
+    @property
+    def dt_s(self) -> float:
+        return self.plant.dt_s
+
+
+V1 = BenchmarkSpec(
+    version="scftc-v1",
+    title="the source study's testbed: torques on the body, perfect sensors",
+    plant=RigidBodyPlant(),
+    observation=(
+        ObservationField(name="sigma_meas", width=3, unit="MRP"),
+        ObservationField(name="omega_meas", width=3, unit="rad/s"),
+    ),
+    action_dim=3,
     splits={
-        "train": SplitSpec(
-            inertia_scale=_closed(0.8, 2.0),
-            gain_magnitude=_closed(0.5, 1.5),
+        "train": RigidBodySplit(
+            inertia_scale=closed(0.8, 2.0),
+            gain_magnitude=closed(0.5, 1.5),
             reversed_axes=(0, 1),
-            bias=_closed(-0.2, 0.2),
+            bias=closed(-0.2, 0.2),
         ),
-        "test": SplitSpec(
-            inertia_scale=_outside(0.7, 0.8, 2.0, 2.3),
-            gain_magnitude=_outside(0.3, 0.5, 1.5, 2.0),
+        "test": RigidBodySplit(
+            inertia_scale=outside(0.7, 0.8, 2.0, 2.3),
+            gain_magnitude=outside(0.3, 0.5, 1.5, 2.0),
             reversed_axes=(2, 3),
-            bias=_outside(-0.3, -0.2, 0.2, 0.3),
+            bias=outside(-0.3, -0.2, 0.2, 0.3),
         ),
-    }
+    },
+    fault_classes=("sign", "gain", "gain_bias", "loss"),
+    sensor_faults=("bias_0.1", "bias_0.2", "bias_0.3", "bias_0.5", "dropout", "stuck"),
+    ranked_classes=("sign", "gain", "gain_bias"),
 )
 
-INERTIA_NOMINAL = np.array(SPEC.plant.inertia_nominal_kgm2)
+SPECS: dict[str, BenchmarkSpec] = {V1.version: V1}
+
+
+def get_spec(version: str = DEFAULT_BENCHMARK) -> BenchmarkSpec:
+    """The spec of ``version``; an unknown version suggests the closest one."""
+    if version not in SPECS:
+        raise UnknownNameError("benchmark version", version, SPECS)
+    return SPECS[version]

@@ -1,14 +1,27 @@
-"""Gates and Wilson intervals on arrays whose answers can be worked out by hand."""
+"""Gates and Wilson intervals on arrays whose answers can be worked out by hand, and the rollout's
+on-the-fly gate statistics against gates computed independently from a recorded trajectory."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.stats import binomtest
 
-from scftc_cli.scoring import gate_outcomes, gate_stat, operational, settled, touch_once, wilson_interval
-from scftc_cli.sim.rollout import Rollout
+from scftc_cli.registry import make_controller
+from scftc_cli.scoring import (
+    episode_outcomes,
+    gate_stat,
+    settled,
+    touch_once,
+    trajectory_gates,
+    wilson_interval,
+)
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.v1 import TESTBED
+from scftc_cli.spec import V1
 
 STEPS = 400
+GATES = V1.gates
 
 
 def _trajectories() -> np.ndarray:
@@ -22,34 +35,51 @@ def _trajectories() -> np.ndarray:
 
 
 def test_gates_on_synthetic_trajectories():
-    err = _trajectories()
-    np.testing.assert_array_equal(settled(err), [True, False, False, False])
-    np.testing.assert_array_equal(touch_once(err), [True, True, True, False])
-    np.testing.assert_array_equal(operational(err), [True, True, True, True])
-    assert not settled(np.full((1, STEPS), 0.2 + 1e-12))[0] and settled(np.full((1, STEPS), 0.2))[0]
+    gates = trajectory_gates(_trajectories(), GATES)
+    np.testing.assert_array_equal(gates["settled"], [True, False, False, False])
+    np.testing.assert_array_equal(gates["touch_once"], [True, True, True, False])
+    np.testing.assert_array_equal(gates["operational"], [True, True, True, True])
+    assert not settled(np.full((1, STEPS), 0.2 + 1e-12), 0.2, 20)[0]
+    assert settled(np.full((1, STEPS), 0.2), 0.2, 20)[0]
+    assert touch_once(np.full((1, STEPS), 0.2), 0.2)[0]
 
 
 def test_dwell_window_is_the_final_20_steps():
     err = np.full((1, STEPS), 0.1)
     err[0, STEPS - 21] = 50.0  # just before the window
-    assert settled(err)[0]
+    assert settled(err, GATES.settled_deg, GATES.dwell_steps)[0]
     err[0, STEPS - 20] = 50.0
-    assert not settled(err)[0]
+    assert not settled(err, GATES.settled_deg, GATES.dwell_steps)[0]
 
 
-def test_on_the_fly_statistics_agree_with_the_trajectory_gates():
-    err = _trajectories()
-    rollout = Rollout(err[:, -1], err[:, -20:].max(axis=1), err.min(axis=1))
-    outcomes = gate_outcomes(rollout)
-    np.testing.assert_array_equal(outcomes["settled"], settled(err))
-    np.testing.assert_array_equal(outcomes["operational"], operational(err))
-    np.testing.assert_array_equal(outcomes["touch_once"], touch_once(err))
+@pytest.mark.parametrize(
+    ("controller", "fault_class"), [("bias_oracle", "gain_bias"), ("pd", "sign"), ("rls_dob", "gain")]
+)
+def test_a_real_rollout_scores_what_its_recorded_trajectory_shows(controller, fault_class):
+    """The rollout accumulates the dwell maximum, minimum and settling step on the fly; an
+    off-by-one in that accumulation would show against gates computed from the full trace."""
+    episodes = TESTBED.draw("test", fault_class, n_faults=20, n_seeds=3)
+    run = rollout(make_controller(controller), episodes, record=True)
+    expected = trajectory_gates(run.error_deg, GATES)
+    outcomes = episode_outcomes(run, GATES)
+    for gate, passed in expected.items():
+        np.testing.assert_array_equal(getattr(outcomes, gate), passed, err_msg=gate)
+    np.testing.assert_array_equal(outcomes.final_error_deg, run.error_deg[:, -1])
+    # settling time: the first sample (time (k + 1) dt) after which the error never exceeds the gate
+    outside = run.error_deg > GATES.settled_deg
+    for e in range(episodes.n):
+        if outside[e, -1]:
+            assert np.isnan(outcomes.settling_time_s[e])
+        else:
+            last = np.flatnonzero(outside[e])
+            first_inside = (last[-1] + 1) if last.size else 0
+            assert outcomes.settling_time_s[e] == (first_inside + 1) * V1.dt_s
 
 
 @pytest.mark.parametrize(
     ("k", "n", "low", "high"),
     [
-        (297, 500, 0.5504, 0.6362),  # SPEC's headline: 59.4 % [55.0, 63.6]
+        (297, 500, 0.5504, 0.6362),  # the source study's headline: 59.4 % [55.0, 63.6]
         (0, 500, 0.0, 0.00762),
         (500, 500, 0.99238, 1.0),
         (5, 10, 0.2366, 0.7634),  # symmetric around 1/2
@@ -60,12 +90,16 @@ def test_wilson_interval_known_values(k, n, low, high):
     assert lo == pytest.approx(low, abs=1e-4) and hi == pytest.approx(high, abs=1e-4)
 
 
-def test_wilson_interval_closed_form():
-    k, n, z = 37, 120, 1.959963984540054
-    p = k / n
-    centre = (p + z**2 / (2 * n)) / (1 + z**2 / n)
-    half = z / (1 + z**2 / n) * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
-    assert wilson_interval(k, n) == pytest.approx((centre - half, centre + half), abs=1e-12)
+@pytest.mark.parametrize("n", [1, 7, 60, 500, 1500])
+def test_wilson_interval_is_scipys_for_every_k(n):
+    for k in range(n + 1):
+        ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
+        assert wilson_interval(k, n) == pytest.approx((ci.low, ci.high), abs=1e-12)
+
+
+def test_wilson_interval_refuses_impossible_counts():
+    with pytest.raises(ValueError):
+        wilson_interval(5, 4)
 
 
 def test_gate_stat_counts():

@@ -1,16 +1,6 @@
-"""The controller battery. Importing this package registers every built-in controller, in the
-order of the battery table (SPEC section 4): fault-unaware, classical, learned, beyond the study,
-then the privileged oracles (``registry()`` lists those last)."""
+"""The built-in controller battery, one module per method (``scftc_cli/registry.py`` lists them).
 
-# ruff: noqa: I001  (the import order is the battery order)
-
-from scftc_cli.baselines import (  # noqa: F401  (imported to register)
-    analytic,
-    pid,
-    adaptive,
-    icl,
-    nussbaum,
-    ppo,
-    rma,
-    rls,
-)
+Shared pieces: ``analytic`` (the analytic law), ``observer`` (measured torque, disturbance
+observer, dither), ``params`` (tuned parameters and weights on disk), ``checker`` (the protocol
+check every controller passes).
+"""

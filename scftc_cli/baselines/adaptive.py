@@ -16,7 +16,7 @@ Per body axis, every step ``k`` (``dW_k``: the measured normalized net torque of
   ``beta <- beta + gamma_beta eps``, with a dead-zone (no update while ``|eps| < dead_zone``) and
   projection of ``m`` onto ``[m_min, m_max]``.
 * **Control** — the analytic law ``a = clip((u0 - beta_hat) / theta_eff(s_hat m_hat))``,
-  ``u0 = -I0 (Kp sigma + Kd w) / tau_max`` at the SPEC calibration point, plus a square-wave dither
+  ``u0 = -I0 (Kp sigma + Kd w) / tau_max`` at the calibration point, plus a square-wave dither
   for the first ``dither_steps`` steps (near rest, feedback alone kills ``da``; a saturated law too).
 
 ``gamma_beta = 0`` gives the textbook sign-plus-magnitude design with no bias estimate.
@@ -29,16 +29,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from scftc_cli.baselines.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
-from scftc_cli.baselines.base import Context, Controller, register
 from scftc_cli.baselines.observer import TorqueMeter, square_dither
-from scftc_cli.params import load_params
+from scftc_cli.baselines.params import load_params
+from scftc_cli.protocol import Context, Controller
 
 NAME = "classical_adaptive"
 
 
 @dataclass(frozen=True)
 class AdaptiveParams:
-    """Tunable settings (starting values from CONTROLLERS.md)."""
+    """Tunable settings (starting values from the literature, docs/controllers.md)."""
 
     vote_min_da: float = 0.05
     vote_decay: float = 0.9
@@ -77,7 +77,6 @@ class SignVote:
         return flip
 
 
-@register(NAME, "per-axis sign identification (vote) + adaptive gain magnitude and bias")
 class ClassicalAdaptive(Controller):
     """Sign vote + normalized-gradient magnitude/bias law feeding the analytic law."""
 

@@ -1,5 +1,5 @@
 """The analytic law and the three controllers built directly on it: ``pd``, ``teacher``,
-``bias_oracle`` (SPEC section 4).
+``bias_oracle`` (docs/benchmark.md, "What is identifiable").
 
 ``u0 = -I0 (Kp sigma + Kd w) / tau_max``; ``a = (u0 - beta_hat) / theta_eff(theta_hat)``. With the
 true ``theta = g/f`` this is exactly the inertia-scaled PD ``-f I0 (...)`` divided by the gain.
@@ -9,11 +9,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from scftc_cli.baselines.base import Context, Controller, register
+from scftc_cli.errors import UsageError
+from scftc_cli.protocol import Context, Controller
 
-KP_S2 = 0.04  # SPEC section 4 calibration point
+KP_S2 = 0.04  # the calibration point of docs/benchmark.md
 KD_S = 0.14
 THETA_FLOOR = 0.05  # |theta_eff| never below this: a dead axis saturates instead of dividing by 0
+
+
+def torque_cap_nm(context: Context) -> float:
+    """``tau_max``: the body torque per axis at command 1 (``scftc-v1``'s actuators)."""
+    if context.tau_max_nm is None:
+        raise UsageError(
+            f"this controller flies scftc-v1's body-torque actuators, not {context.benchmark_version}'s"
+        )
+    return context.tau_max_nm
 
 
 def theta_eff(theta_hat: np.ndarray, floor: float = THETA_FLOOR) -> np.ndarray:
@@ -28,18 +38,15 @@ def nominal_command(
 
     Written as two per-axis gain vectors so a step costs three array operations (hot path).
     """
-    scale = -context.inertia_nominal_kgm2 / context.tau_max_nm
+    scale = -context.inertia_nominal_kgm2 / torque_cap_nm(context)
     return (scale * kp_s2) * obs[:, :3] + (scale * kd_s) * obs[:, 3:]
 
 
-def analytic_command(
-    u0: np.ndarray, theta_hat: np.ndarray, beta_hat: np.ndarray | float = 0.0
-) -> np.ndarray:
+def analytic_command(u0: np.ndarray, theta_hat: np.ndarray, beta_hat: np.ndarray | float = 0.0) -> np.ndarray:
     """``clip((u0 - beta_hat) / theta_eff(theta_hat), -1, 1)``; all ``(n, 3)``."""
     return np.clip((u0 - beta_hat) / theta_eff(theta_hat), -1.0, 1.0)
 
 
-@register("pd", "fault-unaware inertia-scaled PD on MRPs")
 class PD(Controller):
     """``a = clip(-I0 (Kp sigma + Kd w) / tau_max)`` (Schaub & Junkins; Basilisk ``mrpFeedback``)."""
 
@@ -53,7 +60,6 @@ class PD(Controller):
         return np.clip(nominal_command(obs, self.context, self.kp_s2, self.kd_s), -1.0, 1.0)
 
 
-@register("teacher", "privileged: the analytic law fed the true theta = g/f")
 class Teacher(Controller):
     """The analytic law with the true ``theta`` and ``beta_hat = 0`` (an upper bound, privileged)."""
 
@@ -71,7 +77,6 @@ class Teacher(Controller):
         return np.clip((nominal_command(obs, self.context) - self.beta) / self.theta_eff, -1.0, 1.0)
 
 
-@register("bias_oracle", "privileged: the analytic law fed the true theta and beta = b/f")
 class BiasOracle(Teacher):
     """The analytic law with the true ``theta`` and ``beta`` (an upper bound, privileged)."""
 

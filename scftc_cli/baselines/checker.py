@@ -1,43 +1,59 @@
 """``check_controller``: the one checker every registered controller (and submission) passes.
 
 Like gymnasium's ``check_env``: shapes, finite and bounded commands, and determinism — the same
-observations after a fresh ``reset`` give bit-identical commands.
+observations after a fresh ``reset`` give bit-identical commands. It flies the benchmark's own
+closed loop (``sim/rollout.py``) on a short prefix of a few train episodes.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from scftc_cli.baselines.base import Controller
-from scftc_cli.sim.dynamics import NumpyPlant
-from scftc_cli.sim.faults import draw_episodes
-from scftc_cli.sim.rollout import controller_context, validate_commands
-from scftc_cli.sim.sensors import Sensor
-from scftc_cli.spec import INERTIA_NOMINAL, SPEC
+from scftc_cli.protocol import Context, Controller
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.testbed import testbed
+from scftc_cli.spec import DEFAULT_BENCHMARK
 
 
-def _fly(controller: Controller, steps: int, fault_class: str) -> np.ndarray:
-    episodes = draw_episodes("train", fault_class, n_faults=3, n_seeds=2)
-    inertia = episodes.fault.inertia_scale[:, None] * INERTIA_NOMINAL
-    plant = NumpyPlant(episodes.sigma0, episodes.omega0_rad_s, inertia, SPEC.plant.dt_s)
-    sensor = Sensor(None, episodes.sigma0, None)
-    controller.reset(episodes.n, controller_context(controller, episodes))
-    sigma, omega = episodes.sigma0, episodes.omega0_rad_s
-    out = []
-    for _ in range(steps):
-        command = validate_commands(controller.act(sensor.observe(sigma, omega)), episodes.n)
-        if np.any(np.abs(command) > 1.0):
-            raise AssertionError(f"{type(controller).__name__} returned commands outside [-1, 1]")
-        out.append(command.copy())
-        torque = (command * episodes.fault.gain + episodes.fault.bias) * SPEC.plant.tau_max_nm
-        sigma, omega = plant.step(torque)
-    return np.stack(out, axis=1)
+class _Recorder(Controller):
+    """Passes everything through to ``inner`` and keeps a copy of every command it returned."""
+
+    def __init__(self, inner: Controller) -> None:
+        self.inner = inner
+        self.commands: list[np.ndarray] = []
+        # an instance attribute shadows the class default: the rollout hands the true fault only
+        # to a privileged inner controller
+        self.privileged = inner.privileged  # type: ignore[misc]
+
+    def reset(self, n: int, context: Context) -> None:
+        self.inner.reset(n, context)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        command = self.inner.act(obs)
+        if isinstance(command, np.ndarray) and np.any(np.abs(command) > 1.0):
+            raise AssertionError(f"{type(self.inner).__name__} returned commands outside [-1, 1]")
+        self.commands.append(np.array(command, copy=True))
+        return command
 
 
-def check_controller(controller: Controller, steps: int = 40) -> None:
-    """Raise ``AssertionError`` (or ``ControllerError``) if ``controller`` breaks the protocol."""
-    for fault_class in ("gain_bias", "loss"):
-        first = _fly(controller, steps, fault_class)
-        again = _fly(controller, steps, fault_class)
+def _fly(controller: Controller, benchmark: str, fault_class: str, steps: int) -> np.ndarray:
+    episodes = testbed(benchmark).draw("train", fault_class, n_faults=3, n_seeds=2)
+    recorder = _Recorder(controller)
+    rollout(recorder, episodes, steps=steps)
+    return np.stack(recorder.commands, axis=1)
+
+
+def check_controller(
+    controller: Controller,
+    steps: int = 40,
+    benchmark: str = DEFAULT_BENCHMARK,
+    classes: tuple[str, ...] = ("gain_bias", "loss"),
+) -> None:
+    """Raise ``AssertionError`` (or ``ControllerError``) if ``controller`` breaks the protocol on
+    ``benchmark``: wrong shape or dtype, non-finite or out-of-range commands, or commands that
+    differ between two flights of the same episodes."""
+    for fault_class in classes:
+        first = _fly(controller, benchmark, fault_class, steps)
+        again = _fly(controller, benchmark, fault_class, steps)
         if not np.array_equal(first, again):
             raise AssertionError(f"{type(controller).__name__} is not deterministic after reset()")

@@ -25,7 +25,7 @@ absorbs the inertia scale (``theta = g/f``), which is what is identifiable. A sq
 (each level held for one window) for the first ``dither_steps`` steps supplies the finite
 excitation: windows of a saturated law alone are collinear (``Y = [+-1, 1]``), the known trap.
 
-Control: ``a = clip((u0 - beta_hat) / theta_eff(theta_hat))`` with ``u0`` at the SPEC calibration
+Control: ``a = clip((u0 - beta_hat) / theta_eff(theta_hat))`` with ``u0`` at the calibration
 point and ``|theta_eff| >= theta_floor``.
 """
 
@@ -36,16 +36,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from scftc_cli.baselines.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
-from scftc_cli.baselines.base import Context, Controller, register
 from scftc_cli.baselines.observer import TorqueMeter, square_dither
-from scftc_cli.params import load_params
+from scftc_cli.baselines.params import load_params
+from scftc_cli.protocol import Context, Controller
 
 NAME = "icl_adaptive"
 
 
 @dataclass(frozen=True)
 class ICLParams:
-    """Tunable settings (starting values from CONTROLLERS.md)."""
+    """Tunable settings (starting values from the literature, docs/controllers.md)."""
 
     window: int = 4
     stack_size: int = 10
@@ -113,7 +113,6 @@ class HistoryStack:
         return (self.y1 * r).sum(-1) / norm, r.sum(-1) / norm
 
 
-@register(NAME, "integral concurrent learning of (theta, beta) with a history stack (Parikh 2019)")
 class ICLAdaptive(Controller):
     """ICL estimate of ``(theta, beta)`` per axis feeding the analytic law."""
 

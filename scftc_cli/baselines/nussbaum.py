@@ -34,16 +34,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.analytic import KD_S, KP_S2
-from scftc_cli.baselines.base import Context, Controller, register
-from scftc_cli.params import load_params
+from scftc_cli.baselines.analytic import KD_S, KP_S2, torque_cap_nm
+from scftc_cli.baselines.params import load_params
+from scftc_cli.protocol import Context, Controller
 
 NAME = "nussbaum"
 
 
 @dataclass(frozen=True)
 class NussbaumParams:
-    """Tunable settings (starting values from CONTROLLERS.md)."""
+    """Tunable settings (starting values from the literature, docs/controllers.md)."""
 
     gamma: float = 0.05
     zeta0: float = 1.0
@@ -59,7 +59,6 @@ def nussbaum_gain(zeta: np.ndarray, zeta0: float) -> np.ndarray:
     return zeta**2 * np.cos(zeta) / (zeta0**2 * np.cos(zeta0))
 
 
-@register(NAME, "per-axis Nussbaum gain for unknown direction + adaptive bias term (Nussbaum 1983)")
 class Nussbaum(Controller):
     """Per-axis ``a = -N(zeta) (s + d_hat)`` with ``zeta`` and ``d_hat`` adapted from ``s``."""
 
@@ -73,7 +72,7 @@ class Nussbaum(Controller):
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         p, ctx = self.params, self.context
-        s = ctx.inertia_nominal_kgm2 * (p.kp_s2 * obs[:, :3] + p.kd_s * obs[:, 3:]) / ctx.tau_max_nm
+        s = ctx.inertia_nominal_kgm2 * (p.kp_s2 * obs[:, :3] + p.kd_s * obs[:, 3:]) / torque_cap_nm(ctx)
         u_bar = s + self.d_hat
         command = np.clip(-nussbaum_gain(self.zeta, p.zeta0) * u_bar, -1.0, 1.0)
         dz = np.sign(s) * np.maximum(np.abs(s) - p.dead_zone, 0.0)

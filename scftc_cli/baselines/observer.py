@@ -1,4 +1,4 @@
-"""The measured net torque of a step and the disturbance observer built on it (SPEC section 4).
+"""The measured net torque of a step and the disturbance observer built on it.
 
 Dividing the dynamics by the inertia scale ``f`` gives, per body axis ``i``,
 ``I0 w_dot = tau_max (theta a + beta) - w x (I0 w)``. Integrated over one zero-order-hold step,
@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from scftc_cli.baselines.base import Context
-from scftc_cli.sim.dynamics import cross
+from scftc_cli.baselines.analytic import torque_cap_nm
+from scftc_cli.protocol import Context
+from scftc_cli.sim.mrp import cross
 
 
 def gyroscopic_nm(omega_rad_s: np.ndarray, inertia_kgm2: np.ndarray) -> np.ndarray:
@@ -38,7 +39,7 @@ def measured_torque(omega_prev_rad_s: np.ndarray, omega_rad_s: np.ndarray, conte
     """
     inertia, dt_s = context.inertia_nominal_kgm2, context.dt_s
     gyro = 0.5 * (gyroscopic_nm(omega_prev_rad_s, inertia) + gyroscopic_nm(omega_rad_s, inertia))
-    return (inertia * (omega_rad_s - omega_prev_rad_s) + dt_s * gyro) / (context.tau_max_nm * dt_s)
+    return (inertia * (omega_rad_s - omega_prev_rad_s) + dt_s * gyro) / (torque_cap_nm(context) * dt_s)
 
 
 class TorqueMeter:

@@ -24,16 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.analytic import KD_S, KP_S2
-from scftc_cli.baselines.base import Context, Controller, register
-from scftc_cli.params import load_params
+from scftc_cli.baselines.analytic import KD_S, KP_S2, torque_cap_nm
+from scftc_cli.baselines.params import load_params
+from scftc_cli.protocol import Context, Controller
 
 NAME = "pid"
 
 
 @dataclass(frozen=True)
 class PIDParams:
-    """Tunable settings (starting values from CONTROLLERS.md)."""
+    """Tunable settings (starting values from the literature, docs/controllers.md)."""
 
     kp_s2: float = KP_S2
     kd_s: float = KD_S
@@ -42,7 +42,6 @@ class PIDParams:
     integrate_below: float = 0.1
 
 
-@register(NAME, "PD + integral on sigma with conditional-integration and clamping anti-windup")
 class PID(Controller):
     """Inertia-scaled MRP PID with anti-windup (fault-unaware)."""
 
@@ -56,7 +55,7 @@ class PID(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         p, ctx = self.params, self.context
         sigma, omega = obs[:, :3], obs[:, 3:]
-        scale = ctx.inertia_nominal_kgm2 / ctx.tau_max_nm
+        scale = ctx.inertia_nominal_kgm2 / torque_cap_nm(ctx)
         u = -scale * (p.kp_s2 * sigma + p.kd_s * omega + p.ki_s3 * self.z)
         command = np.clip(u, -1.0, 1.0)
         # integrating sigma > 0 pushes u down: freeze where that deepens a saturation

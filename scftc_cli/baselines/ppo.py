@@ -4,7 +4,7 @@ Trained from scratch with PPO on the train split (``scftc train --controller e2e
 uses sb3-contrib's ``RecurrentPPO``), then exported to the plain torch module below, so that
 evaluating it needs torch only. The policy is sb3-contrib's ``MlpLstmPolicy`` actor: an LSTM
 over the scaled observation and previous action, one tanh layer, a linear action head; deployed
-deterministically (the Gaussian's mean, clipped to [-1, 1]). The SPEC names a GRU; sb3-contrib
+deterministically (the Gaussian's mean, clipped to [-1, 1]). The source study used a GRU; sb3-contrib
 offers only the LSTM, which is at least as expressive.
 
 Weights live in ``scftc_cli/weights/e2e_ppo.pt`` with a sidecar ``e2e_ppo.yaml`` (provenance).
@@ -20,10 +20,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from scftc_cli.baselines.base import Context, Controller, register
+from scftc_cli.baselines.params import WEIGHTS_DIR
 from scftc_cli.baselines.torch_runtime import inference_mode_threads
 from scftc_cli.errors import ScftcError
-from scftc_cli.params import WEIGHTS_DIR
+from scftc_cli.protocol import Context, Controller
 
 # The policy's input: [sigma, 10 w, previous action] (rates of ~0.1 rad/s to order 1).
 OBS_SCALE = (1.0, 1.0, 1.0, 10.0, 10.0, 10.0, 1.0, 1.0, 1.0)
@@ -94,7 +94,6 @@ def load_policy(path: Path | None = None) -> RecurrentPolicy:
     return policy.double().eval()
 
 
-@register("e2e_ppo", "end-to-end recurrent policy (LSTM) trained from scratch with PPO")
 class E2EPPO(Controller):
     """Runs the exported recurrent policy deterministically over the whole batch."""
 

@@ -1,5 +1,5 @@
 """``rls_dob``: estimate-then-control with no learning — per-axis recursive least squares plus the
-disturbance observer, feeding the analytic law (SPEC section 4, "beyond the study").
+disturbance observer, feeding the analytic law ("beyond the study": docs/controllers.md).
 
 Law (per body axis ``i``, every step ``k``):
 
@@ -21,7 +21,7 @@ Law (per body axis ``i``, every step ``k``):
   ``beta_hat``), which cancels the true bias even if the frozen ``theta_hat`` is off. The settled
   phase has no excitation: a live estimator would wander there;
 * control: the analytic law ``a = clip((u0 - beta_hat) / theta_eff(theta_hat))`` with
-  ``u0 = -I0 (Kp sigma + Kd w) / tau_max`` at the SPEC calibration point and
+  ``u0 = -I0 (Kp sigma + Kd w) / tau_max`` at the calibration point and
   ``|theta_eff| >= theta_floor``.
 
 Noise-free gyro data make ``dW`` exact up to rounding, so two distinct commands identify
@@ -35,16 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from scftc_cli.baselines.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
-from scftc_cli.baselines.base import Context, Controller, register
 from scftc_cli.baselines.observer import DisturbanceObserver, TorqueMeter, square_dither
-from scftc_cli.params import load_params
+from scftc_cli.baselines.params import load_params
+from scftc_cli.protocol import Context, Controller
 
 NAME = "rls_dob"
 
 
 @dataclass(frozen=True)
 class RLSParams:
-    """Tunable settings (starting values from CONTROLLERS.md)."""
+    """Tunable settings (starting values from the literature, docs/controllers.md)."""
 
     forgetting: float = 0.98
     p0_theta: float = 10.0
@@ -98,7 +98,6 @@ class AxisRLS:
         self.p22 = np.where(active, p22 * scale, self.p22)
 
 
-@register(NAME, "per-axis RLS on the measured torque + disturbance observer, latched (no learning)")
 class RLSDob(Controller):
     """Estimate-then-control: per-axis RLS of ``(theta, beta)``, latched, then the observer."""
 

@@ -3,7 +3,7 @@
 RMA (Kumar et al. 2021, arXiv 2107.04034) trains a privileged teacher and a student that infers
 the teacher's privileged input from the history of commands and responses. Here the teacher is the
 analytic law fed the true ``theta = g/f`` (``teacher``), and the student is a GRU-driven
-least-squares estimator of the *identifiable* per-axis authority ``theta`` (SPEC section 4),
+least-squares estimator of the *identifiable* per-axis authority ``theta`` (docs/benchmark.md),
 online. The source study
 regressed ``[g0, g1, g2, f-1]`` instead, which is ill-posed: scaling ``g``, ``b`` and ``f``
 together leaves every trajectory unchanged, so that regression can only learn a conditional mean.
@@ -17,7 +17,7 @@ reversed, which is exactly what the held-out sign patterns change.
 The persistence-of-excitation latch freezes each axis' estimate once the commands varied enough
 and the estimate stopped moving; in the settled phase there is no excitation left, and a live
 estimate could wander and make the loop limit-cycle. ``rma_dob`` adds the disturbance observer
-of SPEC section 4 on top of a student trained with train-split biases in the loop; that student
+of docs/benchmark.md on top of a student trained with train-split biases in the loop; that student
 sees only bias-invariant features (first differences: ``ddW = theta da`` under a constant bias),
 so a bias outside the train range cannot fake the authority it reports.
 
@@ -43,11 +43,11 @@ from torch import nn
 from torch.nn import functional
 
 from scftc_cli.baselines.analytic import analytic_command, nominal_command
-from scftc_cli.baselines.base import Context, Controller, register
 from scftc_cli.baselines.observer import DisturbanceObserver, TorqueMeter
+from scftc_cli.baselines.params import WEIGHTS_DIR
 from scftc_cli.baselines.torch_runtime import inference_mode_threads
 from scftc_cli.errors import ScftcError
-from scftc_cli.params import WEIGHTS_DIR
+from scftc_cli.protocol import Context, Controller
 
 N_FEATURES = 12
 RATIO_EPS = 0.01  # regularizes the one-step ratio where the command was small
@@ -124,9 +124,11 @@ class ThetaStudent(nn.Module):
     and what to say before the data are informative; the data, not the network's output range,
     decide the size of the answer. A plain regression head cannot answer outside the ``|theta|``
     it was trained on (the held-out split's authorities go below the train range by
-    construction, SPEC section 2); this one is equivariant to the authority's scale once the data
+    construction, docs/benchmark.md); this one is equivariant to the authority's scale once the data
     outweigh the prior.
     """
+
+    scale: torch.Tensor  # a registered buffer
 
     def __init__(self, hidden: int = 32, bias_invariant: bool = False) -> None:
         super().__init__()
@@ -328,14 +330,12 @@ class StudentController(Controller):
         return command
 
 
-@register("rma_student", "RMA: latched GRU estimate of theta = g/f feeding the analytic law")
 class RMAStudent(StudentController):
-    """The RMA student (SPEC section 4); weights ``scftc_cli/weights/rma_student.pt``."""
+    """The RMA student; weights ``scftc_cli/weights/rma_student.pt``."""
 
     name = "rma_student"
 
 
-@register("rma_dob", "RMA gain student (trained with biases) + disturbance observer")
 class RMADob(StudentController):
     """The gain student composed with the disturbance observer; weights ``rma_dob.pt``."""
 

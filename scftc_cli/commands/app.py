@@ -1,10 +1,11 @@
-"""The ``scftc`` typer application."""
+"""The ``scftc`` typer application. Every command module imports the library lazily, inside the
+command, so ``scftc --help`` stays fast."""
 
 from __future__ import annotations
 
 import typer
 
-from scftc_cli import BENCHMARK_VERSION, __version__
+from scftc_cli import __version__
 from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
 from scftc_cli.commands.leaderboard import leaderboard_app, schemas_command
@@ -12,15 +13,33 @@ from scftc_cli.commands.listing import list_command
 from scftc_cli.commands.reproduce import reproduce_command
 from scftc_cli.commands.submit import submit_command
 from scftc_cli.commands.train import train_command
+from scftc_cli.spec import SPECS
 
 app = typer.Typer(
     name="scftc",
-    help=f"SCFTC {__version__} ({BENCHMARK_VERSION}): the honest benchmark for spacecraft attitude "
-    "fault-tolerant control. Scores controllers on a settled gate over held-out faults.",
+    help=f"SCFTC {__version__}: the honest benchmark for spacecraft attitude fault-tolerant control. "
+    f"Scores controllers on a settled gate over held-out faults. Benchmark versions: {', '.join(SPECS)}.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"scftc {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """SCFTC: the honest benchmark for spacecraft attitude fault-tolerant control."""
+
+
 app.command("eval")(eval_command)
 app.command("list")(list_command)
 app.command("train")(train_command)

@@ -1,4 +1,4 @@
-"""``scftc crosscheck``: show the numpy backend equal to Basilisk on the same episodes."""
+"""``scftc crosscheck``: show the default backend equal to Basilisk on the same episodes."""
 
 from __future__ import annotations
 
@@ -7,9 +7,7 @@ from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import exits_cleanly, step_progress
-from scftc_cli.crosscheck import TOLERANCE, crosscheck, default_controllers, total_steps
-from scftc_cli.errors import ScftcError
+from scftc_cli.commands.common import exits_cleanly, progress_bar
 
 
 @exits_cleanly
@@ -19,17 +17,22 @@ def crosscheck_command(
     ] = 20,
     controller: Annotated[
         list[str] | None,
-        typer.Option(help="Controller in the loop, repeatable (default: pd and an adaptive law)."),
+        typer.Option(
+            help="Controller in the loop, repeatable [default: pd and an adaptive law].", show_default=False
+        ),
     ] = None,
 ) -> None:
-    """Fly the same episodes through the numpy backend and Basilisk and compare every state.
+    """Fly the same episodes through the default backend and Basilisk and compare every state.
 
     Prints one JSON document; exits 1 if any sigma or omega differs by more than 1e-9 or any
     gate outcome differs.
     """
+    from scftc_cli.errors import ScftcError
+    from scftc_cli.study.crosscheck import TOLERANCE, crosscheck, default_controllers, total_steps
+
     controllers = tuple(controller) if controller else default_controllers()
-    with step_progress(f"crosscheck: {episodes} episodes", total_steps(episodes, controllers)) as on_step:
-        result = crosscheck(episodes, controllers, on_step=on_step)
+    with progress_bar(f"crosscheck: {episodes} episodes", total_steps(episodes, controllers)) as progress:
+        result = crosscheck(episodes, controllers, progress=progress)
     typer.echo(json.dumps(result.dump(), indent=2))
     if not result.passed:
         why = [] if result.gates_agree else ["gate outcomes differ"]

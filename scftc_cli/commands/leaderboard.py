@@ -1,37 +1,42 @@
-"""``scftc leaderboard [verify|rebuild]`` and ``scftc schemas``."""
+"""``scftc leaderboard [verify|rebuild]`` and ``scftc schemas``.
+
+Options given to the group (``scftc leaderboard --leaderboard X verify``) apply to the subcommand
+exactly as if given after it; given in both places with different values, the command refuses.
+"""
 
 from __future__ import annotations
 
 import json
 import time
 from dataclasses import replace
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
-from scftc_cli.baselines.base import registry
-from scftc_cli.commands.common import exits_cleanly, stderr, step_progress
-from scftc_cli.commands.submit import BoardOption
-from scftc_cli.errors import LeaderboardError
-from scftc_cli.leaderboard import (
-    Scoring,
-    default_board_path,
-    load_secret,
-    read_board,
-    rebuild,
-    schema_documents,
-    schema_text,
-    steps_per_entry,
-    verify,
-    verify_steps,
+from scftc_cli.commands.common import (
+    DEFAULT,
+    BenchmarkOption,
+    BoardOption,
+    choice,
+    exits_cleanly,
+    progress_bar,
+    stderr,
 )
-from scftc_cli.leaderboard_render import FORMATS, render_board
-from scftc_cli.sandbox import SandboxLimits
-from scftc_cli.spec import SPEC
+from scftc_cli.errors import UsageError
+from scftc_cli.submission.limits import SandboxLimits
 
-BoardFormat = Enum("BoardFormat", {f: f for f in FORMATS}, type=str)
+
+class BoardFormat(StrEnum):
+    markdown = "markdown"
+    json = "json"
+    csv = "csv"
+
+
+SubBenchmarkOption = Annotated[
+    str | None, typer.Option("--benchmark", help="Benchmark version [default: scftc-v1].", show_default=False)
+]
 
 leaderboard_app = typer.Typer(
     help="Show the leaderboard (deployable entries ranked, oracles apart), verify or rebuild it.",
@@ -40,30 +45,70 @@ leaderboard_app = typer.Typer(
 )
 
 
+def _explicit(ctx: typer.Context, name: str) -> bool:
+    """Whether the user gave option ``name`` (rather than its default)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name != "DEFAULT"
+
+
+def _resolve(ctx: typer.Context, leaderboard: Path | None, benchmark: str | None) -> tuple[Path, str]:
+    """The board file and benchmark a subcommand acts on, from its own options or the group's."""
+    from scftc_cli.board.store import default_board_path
+
+    group: dict[str, Any] = ctx.obj or {}
+    picked: dict[str, Any] = {}
+    for name, own in (("leaderboard", leaderboard), ("benchmark", benchmark)):
+        before = group.get(name)
+        if own is not None and before is not None and own != before:
+            raise UsageError(
+                f"--{name} given twice with different values ({before} before `{ctx.info_name}`, "
+                f"{own} after); give it once"
+            )
+        picked[name] = own if own is not None else before
+    bench = picked["benchmark"] or DEFAULT
+    return (picked["leaderboard"] or default_board_path(bench)), bench
+
+
 @leaderboard_app.callback(invoke_without_command=True)
 @exits_cleanly
 def show_command(
     ctx: typer.Context,
-    output_format: Annotated[BoardFormat, typer.Option("--format", help="Output format.")] = "markdown",
+    output_format: Annotated[
+        BoardFormat, typer.Option("--format", help="Output format.")
+    ] = BoardFormat.markdown,
     leaderboard: BoardOption = None,
+    benchmark: BenchmarkOption = DEFAULT,
 ) -> None:
-    """Show the leaderboard: deployable entries ranked, privileged oracles apart as upper bounds.
-
-    Ranked by mean settled rate over sign, gain and gain_bias; ties by the mean Wilson lower bound.
-    """
+    """Show the leaderboard: deployable entries ranked, privileged oracles apart as upper bounds."""
     if ctx.invoked_subcommand is not None:
+        if _explicit(ctx, "output_format"):
+            raise UsageError(
+                f"--format applies to showing the board, not to `{ctx.invoked_subcommand}`; drop it"
+            )
+        ctx.obj = {
+            "leaderboard": leaderboard,
+            "benchmark": benchmark if _explicit(ctx, "benchmark") else None,
+        }
         return
-    board = read_board(leaderboard or default_board_path())
-    fmt = output_format.value if isinstance(output_format, Enum) else output_format
+    from scftc_cli.board.render import render_board
+    from scftc_cli.board.store import default_board_path, read_board
+
+    board = read_board(leaderboard or default_board_path(benchmark), benchmark)
+    fmt = choice(output_format)
     typer.echo(render_board(board, fmt), nl=fmt == "json")
 
 
 @leaderboard_app.command("verify")
 @exits_cleanly
 def verify_command(
+    ctx: typer.Context,
     leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
     submissions: Annotated[
-        Path | None, typer.Option(help="Folder of submitted files (default: ../submissions from the board).")
+        Path | None,
+        typer.Option(
+            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
+        ),
     ] = None,
     step_timeout: Annotated[float, typer.Option(hidden=True, min=0.01)] = SandboxLimits().step_timeout_s,
 ) -> None:
@@ -71,11 +116,18 @@ def verify_command(
 
     Built-ins come from the registry, submissions from submissions/ (found by sha256).
     """
-    board_path = leaderboard or default_board_path()
-    board = read_board(board_path)
+    from scftc_cli.board.draws import load_secret
+    from scftc_cli.board.ops import Scoring, verify, verify_steps
+    from scftc_cli.board.store import read_board
+    from scftc_cli.errors import LeaderboardError
+    from scftc_cli.spec import get_spec
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    spec = get_spec(bench)
+    board = read_board(board_path, bench)
     secret, key_file = load_secret()
     scoring = Scoring(
-        limits=replace(SandboxLimits(), step_timeout_s=step_timeout), secret=secret, key_file=key_file
+        spec, limits=replace(SandboxLimits(), step_timeout_s=step_timeout), secret=secret, key_file=key_file
     )
     total = len(board.entries)
     done = {"i": 0}
@@ -86,8 +138,8 @@ def verify_command(
         status = "[green]ok[/green]" if not problems else f"[red]DIFFERS[/red] ({len(problems)} numbers)"
         stderr.print(f"[{done['i']}/{total}] {name}: {status} ({seconds:.1f} s)", highlight=False)
 
-    with step_progress(f"verifying {board_path}", verify_steps(board, scoring)) as on_step:
-        report = verify(board_path, replace(scoring, on_step=on_step), submissions, on_entry=on_entry)
+    with progress_bar(f"verifying {board_path}", verify_steps(board, scoring)) as progress:
+        report = verify(board_path, replace(scoring, progress=progress), submissions, on_entry=on_entry)
     for note in report.notes:
         stderr.print(f"note: {note}", highlight=False, soft_wrap=True)
     for problem in report.problems:
@@ -107,21 +159,31 @@ def verify_command(
 @leaderboard_app.command("rebuild")
 @exits_cleanly
 def rebuild_command(
+    ctx: typer.Context,
     leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
     only: Annotated[
-        list[str] | None, typer.Option(help="Re-score only this built-in controller (repeatable).")
+        list[str] | None,
+        typer.Option(help="Re-score only this built-in controller (repeatable).", show_default=False),
     ] = None,
-    n_faults: Annotated[int, typer.Option(hidden=True, min=1)] = SPEC.n_faults,
-    n_seeds: Annotated[int, typer.Option(hidden=True, min=1)] = SPEC.n_seeds,
+    n_faults: Annotated[int | None, typer.Option(hidden=True, min=1)] = None,
+    n_seeds: Annotated[int | None, typer.Option(hidden=True, min=1)] = None,
 ) -> None:
     """Re-score the built-in battery on the held-out cells and write it to the leaderboard.
 
     Every registered controller (or those named by --only) at n = 500 per cell; submissions are kept.
     """
-    board_path = leaderboard or default_board_path()
+    from scftc_cli.board.draws import load_secret
+    from scftc_cli.board.ops import Scoring, rebuild, steps_per_entry
+    from scftc_cli.errors import LeaderboardError
+    from scftc_cli.registry import registry
+    from scftc_cli.spec import get_spec
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    spec = get_spec(bench)
     secret, key_file = load_secret()
-    scoring = Scoring(n_faults, n_seeds, secret=secret, key_file=key_file)
-    names = only or list(registry())
+    scoring = Scoring(spec, n_faults, n_seeds, secret=secret, key_file=key_file)
+    names = only or list(registry(spec.version))
     total = len(names) * steps_per_entry(scoring)
 
     def on_entry(name: str, seconds: float, error: str | None) -> None:
@@ -130,8 +192,8 @@ def rebuild_command(
         else:
             stderr.print(f"[red]could not score {name}:[/red] {error}", highlight=False, soft_wrap=True)
 
-    with step_progress(f"scoring {len(names)} controllers", total) as on_step:
-        report = rebuild(board_path, replace(scoring, on_step=on_step), only, on_entry=on_entry)
+    with progress_bar(f"scoring {len(names)} controllers", total) as progress:
+        report = rebuild(board_path, replace(scoring, progress=progress), only, on_entry=on_entry)
     if report.board is not None:
         written = len(names) - len(report.failed)
         typer.echo(f"wrote {written} built-in entries to {board_path} (board version {report.board.version})")
@@ -148,6 +210,9 @@ def schemas_command(
     check: Annotated[bool, typer.Option("--check", help="Exit 1 if the files are out of date.")] = False,
 ) -> None:
     """Export the JSON schemas of the submission manifest and the leaderboard."""
+    from scftc_cli.board.models import schema_documents, schema_text
+    from scftc_cli.errors import LeaderboardError
+
     stale = []
     for name, doc in schema_documents().items():
         path = out / name

@@ -1,22 +1,26 @@
-"""``scftc list``: the registered controllers, classes and sensor faults."""
+"""``scftc list``: the registered controllers, classes and sensor faults of a benchmark version."""
 
 from __future__ import annotations
 
-from rich.table import Table
-
-from scftc_cli.baselines.base import registry
-from scftc_cli.render import print_table
-from scftc_cli.spec import SPEC
+from scftc_cli.commands.common import DEFAULT, BenchmarkOption, exits_cleanly
 
 
-def list_command() -> None:
-    """List registered controllers, fault classes and sensor faults."""
-    table = Table(title="controllers")
+@exits_cleanly
+def list_command(benchmark: BenchmarkOption = DEFAULT) -> None:
+    """List the controllers, fault classes and sensor faults of a benchmark version."""
+    from rich.table import Table
+
+    from scftc_cli.registry import registry
+    from scftc_cli.render import print_table
+    from scftc_cli.spec import get_spec
+
+    spec = get_spec(benchmark)
+    table = Table(title=f"controllers of {spec.version} ({spec.title})")
     table.add_column("name")
     table.add_column("privileged")
     table.add_column("what it is")
-    for info in registry().values():
-        table.add_row(info.name, "yes (oracle)" if info.privileged else "no", info.summary)
+    for entry in registry(spec.version).values():
+        table.add_row(entry.name, "yes (oracle)" if entry.privileged else "no", entry.summary)
     print_table(table)
-    print("fault classes:", ", ".join(SPEC.fault_classes))
-    print("sensor faults:", ", ".join(SPEC.sensor_faults))
+    print("fault classes:", ", ".join(spec.fault_classes))
+    print(f"sensor faults (on {spec.sensor_base_class} faults):", ", ".join(spec.sensor_faults))

@@ -8,34 +8,37 @@ from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import exits_cleanly, stderr, step_progress_bar
-from scftc_cli.reproduce import planned_rollouts, run_study, write_tables
-from scftc_cli.spec import SPEC
+from scftc_cli.commands.common import DEFAULT, BenchmarkOption, exits_cleanly, progress_bar, stderr
 
 
 @exits_cleanly
 def reproduce_command(
     out: Annotated[Path, typer.Option(help="Folder for the tables and figures.")] = Path("results"),
-    n_faults: Annotated[int, typer.Option(help="Faults per cell (reduce for a quick look).", min=1)] = (
-        SPEC.n_faults
-    ),
-    n_seeds: Annotated[int, typer.Option(help="Initial conditions per fault.", min=1)] = SPEC.n_seeds,
+    benchmark: BenchmarkOption = DEFAULT,
+    n_faults: Annotated[
+        int | None,
+        typer.Option(
+            help="Faults per cell (reduce for a quick look) [default: 50].", min=1, show_default=False
+        ),
+    ] = None,
+    n_seeds: Annotated[
+        int | None,
+        typer.Option(help="Initial conditions per fault [default: 10].", min=1, show_default=False),
+    ] = None,
 ) -> None:
     """Run the whole battery, the sensor table and the example trajectories; write battery.md/json,
     sensor.md/json and the figures (PNG + SVG) into OUT. No training: uses the committed artifacts."""
-    from scftc_cli.figures import write_figures  # matplotlib only when a figure is drawn
+    from scftc_cli.spec import get_spec
+    from scftc_cli.study.run import planned_steps, run_study
+    from scftc_cli.study.tables import write_tables
 
+    spec = get_spec(benchmark)
     start = time.perf_counter()
-    total_steps = planned_rollouts() * SPEC.plant.steps
-    with step_progress_bar() as progress:
-        task = progress.add_task("reproduce", total=total_steps)
-        study = run_study(
-            n_faults,
-            n_seeds,
-            on_rollout=lambda what: progress.update(task, description=what),
-            on_step=lambda _k: progress.advance(task),
-        )
-        progress.update(task, description="writing tables and figures")
+    with progress_bar("reproduce", planned_steps(spec)) as progress:
+        study = run_study(spec, n_faults, n_seeds, progress=progress)
+        progress.describe("writing tables and figures")
+        from scftc_cli.study.figures import write_figures  # matplotlib only when a figure is drawn
+
         paths = write_tables(study, out) + write_figures(study, out)
     for path in paths:
         stderr.print(f"wrote {path}", highlight=False)

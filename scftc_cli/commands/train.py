@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import shlex
 import sys
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from scftc_cli.commands.common import exits_cleanly, stderr
-from scftc_cli.training import TrainRequest, get_trainer
+from scftc_cli.commands.common import choice, exits_cleanly, progress_bar, stderr
 
-BudgetOption = Enum("BudgetOption", {b: b for b in ("quick", "full")}, type=str)
+
+class BudgetOption(StrEnum):
+    quick = "quick"
+    full = "full"
 
 
 @exits_cleanly
@@ -23,28 +24,24 @@ def train_command(
     seed: Annotated[int, typer.Option(help="Seed of the run; same seed, same artifact.")] = 0,
     budget: Annotated[
         BudgetOption, typer.Option(help="quick (< 2 min smoke test) or full (published artifact).")
-    ] = "full",
+    ] = BudgetOption.full,
     out: Annotated[
         Path | None, typer.Option(help="Write the artifact here instead of the packaged default.")
     ] = None,
 ) -> None:
     """Tune or train CONTROLLER on train-split faults only and save the artifact eval uses."""
+    from scftc_cli.training import TrainRequest, get_trainer
+
     trainer = get_trainer(controller)
-    columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=stderr, transient=True) as progress:
-        task = progress.add_task(f"training {controller}", total=1.0)
-
-        def on_progress(fraction: float, message: str) -> None:
-            progress.update(task, completed=fraction, description=f"{controller}: {message}")
-
+    with progress_bar(f"training {controller}", 1.0, steps=False) as progress:
         report = trainer(
             TrainRequest(
                 controller=controller,
                 seed=seed,
-                budget=budget.value if isinstance(budget, Enum) else budget,
+                budget="quick" if choice(budget) == "quick" else "full",
                 out=out,
                 command=shlex.join(["scftc", *sys.argv[1:]]),
-                on_progress=on_progress,
+                progress=progress,
             )
         )
     stderr.print(

@@ -1,6 +1,6 @@
 """``scftc/AttitudeFTC-v1``: the benchmark's plant and fault taxonomy as a gymnasium environment.
 
-An episode is one benchmark episode (SPEC sections 1-2): a fault drawn from the chosen split and
+An episode is one benchmark episode (docs/benchmark.md): a fault drawn from the chosen split and
 classes, ``sigma0`` uniform in [-0.5, 0.5]^3, ``w0`` uniform in [-0.02, 0.02]^3 rad/s, 400 steps of
 0.5 s, then truncation. The agent observes only ``obs = [sigma_meas, w_meas]`` (optionally with
 its previous action) and commands three normalized torques in [-1, 1]; the fault is never part
@@ -28,11 +28,11 @@ from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 from gymnasium.vector.vector_env import AutoresetMode
 
-from scftc_cli.errors import UnknownNameError, UsageError
-from scftc_cli.sim.dynamics import NumpyPlant
-from scftc_cli.sim.faults import sample_fault
-from scftc_cli.sim.mrp import principal_angle_deg
-from scftc_cli.spec import INERTIA_NOMINAL, SPEC
+from scftc_cli.errors import UsageError
+from scftc_cli.sim.mrp import angle_deg_from_norm2, principal_angle_deg
+from scftc_cli.sim.v1 import TESTBED
+from scftc_cli.sim.v1.faults import check_cell, sample_episodes
+from scftc_cli.spec import V1
 
 ENV_ID = "scftc/AttitudeFTC-v1"
 DEFAULT_CLASSES = ("sign", "gain", "gain_bias")
@@ -56,14 +56,11 @@ def _observation_space(include_prev_action: bool) -> spaces.Box:
 
 
 class _Batch:
-    """``n`` benchmark episodes stepped together; the core of both environments."""
+    """``n`` benchmark episodes stepped together on the fused kernel; the core of both environments."""
 
     def __init__(self, n: int, split: str, fault_classes: tuple[str, ...], include_prev_action: bool):
-        if split not in SPEC.splits:
-            raise UnknownNameError("split", split, SPEC.splits)
         for c in fault_classes:
-            if c not in SPEC.fault_classes:
-                raise UnknownNameError("fault class", c, SPEC.fault_classes)
+            check_cell(V1, split, c, None)
         if not fault_classes:
             raise UsageError("fault_classes must name at least one class")
         self.n, self.split, self.fault_classes = n, split, tuple(fault_classes)
@@ -72,34 +69,27 @@ class _Batch:
 
     def reset(self, rng: np.random.Generator) -> np.ndarray:
         """Draw ``n`` fresh episodes from ``rng``; returns the first observations ``(n, d)``."""
-        plant_spec, split = SPEC.plant, SPEC.splits[self.split]
-        self.gain, self.bias = np.empty((self.n, 3)), np.empty((self.n, 3))
-        scale = np.empty(self.n)
-        for e in range(self.n):
-            fault_class = self.fault_classes[rng.integers(len(self.fault_classes))]
-            self.gain[e], self.bias[e], scale[e] = sample_fault(split, fault_class, rng)
-        sigma0 = rng.uniform(-plant_spec.sigma0_half_width, plant_spec.sigma0_half_width, (self.n, 3))
-        w_half = plant_spec.omega0_half_width_rad_s
-        omega0 = rng.uniform(-w_half, w_half, (self.n, 3))
-        inertia = scale[:, None] * INERTIA_NOMINAL
-        self.plant = NumpyPlant(sigma0, omega0, inertia, plant_spec.dt_s)
+        episodes = sample_episodes(rng, self.n, self.split, self.fault_classes)
+        self.plant = TESTBED.plant(episodes, "numpy")
         self.prev_action = np.zeros((self.n, 3))
         self.k = 0
-        return self._obs(sigma0, omega0)
+        return self._obs()
 
-    def _obs(self, sigma: np.ndarray, omega_rad_s: np.ndarray) -> np.ndarray:
-        cols = [sigma, omega_rad_s] + ([self.prev_action] if self.include_prev_action else [])
+    def _obs(self) -> np.ndarray:
+        states = self.plant.states()
+        cols = [states["sigma"], states["omega_rad_s"]] + (
+            [self.prev_action] if self.include_prev_action else []
+        )
         return np.concatenate(cols, axis=1).astype(np.float32)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray]:
         """Apply ``action`` ``(n, 3)``; returns ``(obs (n, d), reward (n,), truncated, true error)``."""
         command = np.clip(np.asarray(action, dtype=float).reshape(self.n, 3), -1.0, 1.0)
-        torque = (command * self.gain + self.bias) * SPEC.plant.tau_max_nm
-        sigma, omega = self.plant.step(torque)
+        sigma_norm2 = self.plant.step(self.k, command)
         self.prev_action = command
         self.k += 1
-        obs = self._obs(sigma, omega)
-        return obs, shaped_reward(obs), self.k >= SPEC.plant.steps, principal_angle_deg(sigma)
+        obs = self._obs()
+        return obs, shaped_reward(obs), self.k >= V1.steps, angle_deg_from_norm2(sigma_norm2)
 
 
 class AttitudeFTCEnv(gym.Env):

@@ -10,6 +10,18 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of ``(n, 3)`` arrays (faster than ``np.cross`` for small rows)."""
+    return np.stack(
+        (
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ),
+        axis=1,
+    )
+
+
 def norm2(sigma: np.ndarray) -> np.ndarray:
     """``|sigma|^2`` ``(..., 3) -> (...)``."""
     return dot(sigma, sigma)
@@ -36,6 +48,23 @@ def angle_deg_from_norm2(sigma_norm2: np.ndarray) -> np.ndarray:
     """Principal angle ``4 atan(|sigma|)`` in degrees from ``|sigma|^2``; monotone, so the max
     (min) of the angle over steps is the angle of the max (min) of ``|sigma|^2``."""
     return np.degrees(4.0 * np.arctan(np.sqrt(sigma_norm2)))
+
+
+def largest_norm2_within(angle_deg: float) -> float:
+    """The largest ``|sigma|^2`` whose ``angle_deg_from_norm2`` is still ``<= angle_deg``.
+
+    ``angle_deg_from_norm2`` is monotone, so ``norm2 <= largest_norm2_within(a)`` is exactly
+    ``angle_deg_from_norm2(norm2) <= a``, bit for bit: a per-step check can run on ``|sigma|^2``
+    and agree with the gates, which compare angles. Found by bisection over the float64 bit patterns.
+    """
+    lo, hi = 0, int(np.float64(np.inf).view(np.int64))  # non-negative floats order like their bits
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if angle_deg_from_norm2(np.array(np.int64(mid).view(np.float64))) <= angle_deg:
+            lo = mid
+        else:
+            hi = mid
+    return float(np.int64(lo).view(np.float64))
 
 
 def principal_angle_deg(sigma: np.ndarray) -> np.ndarray:

@@ -1,20 +1,24 @@
 """Training and tuning of deployable controllers, on the train split only.
 
-Every trainer is registered under the controller name it produces parameters for and returns a
-``TrainReport``; ``scftc train`` looks it up here. Trainers write the artifacts that ``scftc eval``
-loads (``scftc_cli/params/<name>.yaml`` or ``scftc_cli/weights/<name>.*``), each carrying its
+Every trainer is listed under the controller name it produces parameters for (``TRAINERS``) and
+returns a ``TrainReport``; ``scftc train`` looks it up here. Trainers write the artifacts that
+``scftc eval`` loads (``scftc_cli/params/<name>.yaml`` or ``scftc_cli/weights/<name>.*``), each carrying its
 provenance: the command, seed, budget and train-split score that made it.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from scftc_cli.baselines.params import Provenance
 from scftc_cli.errors import UnknownNameError
-from scftc_cli.params import Provenance
+from scftc_cli.evaluate import Cell, evaluate_cells
+from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
+from scftc_cli.spec import V1
 
 Budget = Literal["quick", "full"]
 
@@ -29,7 +33,7 @@ class TrainRequest:
         budget: ``quick`` (< 2 min, CI smoke test) or ``full`` (the published artifact).
         out: where to write the artifact; ``None`` means the packaged default path.
         command: the command line that started the run, recorded as provenance.
-        on_progress: ``(fraction_done, message)`` callback for the progress bar.
+        progress: where the trainer reports how far it got (a total of 1.0: the whole run).
     """
 
     controller: str
@@ -37,7 +41,14 @@ class TrainRequest:
     budget: Budget = "full"
     out: Path | None = None
     command: str = ""
-    on_progress: Callable[[float, str], None] = field(default=lambda _f, _m: None)
+    progress: Progress = NO_PROGRESS
+    _done: list[float] = field(default_factory=lambda: [0.0], repr=False, compare=False)
+
+    def on_progress(self, fraction: float, message: str) -> None:
+        """The run is ``fraction`` (0..1) done; ``message`` says what it is doing."""
+        self.progress.describe(message)
+        self.progress.advance(max(0.0, fraction - self._done[0]))
+        self._done[0] = max(self._done[0], fraction)
 
     def provenance(self, train_settled_rate: float, notes: str) -> Provenance:
         """The provenance of this run's artifact (the command defaults to the canonical one)."""
@@ -63,27 +74,34 @@ class TrainReport:
 
 
 Trainer = Callable[[TrainRequest], TrainReport]
-_TRAINERS: dict[str, Trainer] = {}
 
-
-def register_trainer(name: str) -> Callable[[Trainer], Trainer]:
-    """Function decorator registering the trainer of controller ``name``."""
-
-    def decorate(fn: Trainer) -> Trainer:
-        _TRAINERS[name] = fn
-        return fn
-
-    return decorate
-
-
-def trainers() -> dict[str, Trainer]:
-    import scftc_cli.training.registry  # noqa: F401  (imports every trainer module)
-
-    return dict(_TRAINERS)
+# Controller name -> "module:function", imported only when that trainer runs (torch, sb3-contrib
+# and scipy.optimize stay off every other command's path).
+TRAINERS: dict[str, str] = {
+    "pid": "scftc_cli.training.tuning:tune_pid",
+    "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
+    "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
+    "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
+    "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
+    "rma_student": "scftc_cli.training.rma:train_student",
+    "rma_dob": "scftc_cli.training.rma:train_student",
+    "e2e_ppo": "scftc_cli.training.ppo:train_e2e_ppo",
+}
 
 
 def get_trainer(name: str) -> Trainer:
-    available = trainers()
-    if name not in available:
-        raise UnknownNameError("trainable controller", name, available)
-    return available[name]
+    """The trainer of controller ``name``; an unknown name lists the trainable ones."""
+    if name not in TRAINERS:
+        raise UnknownNameError("trainable controller", name, TRAINERS)
+    module, _, attr = TRAINERS[name].partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def train_settled_rates(
+    make: Callable[[], Controller], classes: tuple[str, ...], n_faults: int, n_seeds: int
+) -> dict[str, float]:
+    """Settled rate of ``make()``'s controller on the first ``n_faults x n_seeds`` pinned episodes
+    of each *train* cell of ``classes`` (``scftc-v1``): the score every trainer reports."""
+    cells = [Cell("train", c) for c in classes]
+    runs = evaluate_cells(lambda _cell: make(), V1, cells, n_faults=n_faults, n_seeds=n_seeds)
+    return {run.cell.fault_class: run.result.settled.rate for run in runs}

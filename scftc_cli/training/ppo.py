@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.ppo import (
     E2EPPO,
     OBS_SCALE,
@@ -26,11 +27,7 @@ from scftc_cli.baselines.ppo import (
     weights_path,
 )
 from scftc_cli.errors import ScftcError
-from scftc_cli.params import save_params
-from scftc_cli.scoring import gate_outcomes
-from scftc_cli.sim.faults import draw_episodes
-from scftc_cli.sim.rollout import rollout
-from scftc_cli.training import TrainReport, TrainRequest, register_trainer
+from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
 CLASSES = ("sign", "gain", "gain_bias")
 
@@ -75,6 +72,7 @@ def _sb3_vec_env(num_envs: int, seed: int) -> Any:
         def __init__(self) -> None:
             self.venv = AttitudeFTCVectorEnv(num_envs, "train", CLASSES, include_prev_action=True)
             space = self.venv.single_observation_space
+            assert isinstance(space, spaces.Box)
             obs_space = spaces.Box(space.low * scale, space.high * scale, dtype=np.float32)
             super().__init__(num_envs, obs_space, self.venv.single_action_space)
             self.seeded = False
@@ -145,19 +143,11 @@ def check_export(model: Any, policy: RecurrentPolicy, steps: int = 50) -> float:
 
 def settled_rate(policy: RecurrentPolicy, n_faults: int, n_seeds: int) -> float:
     """Mean settled rate over the pinned *train* cells of ``CLASSES``."""
-    controller = E2EPPO(policy=policy.double().eval())
-    rates = [
-        float(
-            gate_outcomes(rollout(controller, draw_episodes("train", c, n_faults=n_faults, n_seeds=n_seeds)))[
-                "settled"
-            ].mean()
-        )
-        for c in CLASSES
-    ]
-    return float(np.mean(rates))
+    frozen = policy.double().eval()
+    rates = train_settled_rates(lambda: E2EPPO(policy=frozen), CLASSES, n_faults, n_seeds)
+    return float(np.mean(list(rates.values())))
 
 
-@register_trainer("e2e_ppo")
 def train_e2e_ppo(request: TrainRequest) -> TrainReport:
     """``scftc train --controller e2e_ppo``: RecurrentPPO from scratch on the train split."""
     try:
@@ -180,7 +170,7 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
         raw = 0.0
 
         def _on_step(self) -> bool:
-            self.raw += float(np.mean(self.training_env.get_original_reward()))
+            self.raw += float(np.mean(self.training_env.get_original_reward()))  # type: ignore[attr-defined]
             return True
 
         def _on_rollout_end(self) -> None:

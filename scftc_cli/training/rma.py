@@ -1,4 +1,4 @@
-"""Trainers of ``rma_student`` and ``rma_dob``: DAgger on the train split (SPEC section 4).
+"""Trainers of ``rma_student`` and ``rma_dob``: DAgger on the train split.
 
 Each iteration flies a fresh batch of train-split episodes with the student's own latched
 estimate in the loop (mixed, early on, with episodes driven by the teacher's true ``theta``), so
@@ -23,7 +23,7 @@ import numpy as np
 import torch
 from torch.nn import functional
 
-from scftc_cli.baselines.base import Context
+from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.rma import (
     LatchConfig,
     StudentConfig,
@@ -32,14 +32,14 @@ from scftc_cli.baselines.rma import (
     save_student,
     weights_path,
 )
-from scftc_cli.params import save_params
-from scftc_cli.scoring import gate_outcomes
-from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes, sample_fault
+from scftc_cli.protocol import Context
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.spec import SPEC
-from scftc_cli.training import TrainReport, TrainRequest, register_trainer
+from scftc_cli.sim.v1 import public_context
+from scftc_cli.sim.v1.faults import sample_episodes
+from scftc_cli.spec import V1
+from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
-OBSERVER_GAIN = 0.1  # SPEC section 4: lambda ~ 0.1 keeps the observer pole inside the envelope
+OBSERVER_GAIN = 0.1  # lambda ~ 0.1 keeps the observer pole inside the envelope
 
 
 @dataclass(frozen=True)
@@ -88,27 +88,6 @@ BUDGETS: dict[str, RMABudget] = {
 CLASSES = {"rma_student": ("sign", "gain"), "rma_dob": ("sign", "gain", "gain_bias")}
 
 
-def sample_train_episodes(rng: np.random.Generator, n: int, classes: tuple[str, ...]) -> Episodes:
-    """``n`` fresh train-split episodes, each of a class drawn uniformly from ``classes``."""
-    split, plant = SPEC.splits["train"], SPEC.plant
-    gains, biases, scales = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-    for e in range(n):
-        gains[e], biases[e], scales[e] = sample_fault(split, classes[rng.integers(len(classes))], rng)
-    sigma0 = rng.uniform(-plant.sigma0_half_width, plant.sigma0_half_width, (n, 3))
-    omega0 = rng.uniform(-plant.omega0_half_width_rad_s, plant.omega0_half_width_rad_s, (n, 3))
-    return Episodes(
-        "train",
-        "mixed",
-        None,
-        ActuatorFault(gains, biases, scales),
-        sigma0,
-        omega0,
-        None,
-        np.arange(n),
-        np.zeros(n, dtype=int),
-    )
-
-
 class _DaggerController(StudentController):
     """Training-only (privileged) controller: the student in the loop, except on the episodes of
     ``teacher_mask`` where the true ``theta`` drives; records every step's student features."""
@@ -124,7 +103,7 @@ class _DaggerController(StudentController):
         if context.fault is None:
             raise ValueError("the DAgger collector needs the true fault")
         self.true_theta = context.fault.theta
-        super().reset(n, Context(n=n))  # the student itself never sees the fault
+        super().reset(n, public_context(n))  # the student itself never sees the fault
         self.recorded = []
 
     def theta_hat(self, obs: np.ndarray) -> np.ndarray:
@@ -137,12 +116,11 @@ def settled_rate(
     model: ThetaStudent, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
 ) -> float:
     """Mean settled rate over the pinned *train* cells of ``classes``."""
-    controller = StudentController(model=copy.deepcopy(model).double().eval(), config=config)
-    rates = []
-    for fault_class in classes:
-        episodes = draw_episodes("train", fault_class, n_faults=n_faults, n_seeds=n_seeds)
-        rates.append(float(gate_outcomes(rollout(controller, episodes))["settled"].mean()))
-    return float(np.mean(rates))
+    frozen = copy.deepcopy(model).double().eval()
+    rates = train_settled_rates(
+        lambda: StudentController(model=frozen, config=config), classes, n_faults, n_seeds
+    )
+    return float(np.mean(list(rates.values())))
 
 
 def student_loss(model: ThetaStudent, x: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
@@ -178,7 +156,7 @@ def train_student(request: TrainRequest) -> TrainReport:
         opt = torch.optim.Adam(model.parameters(), lr=budget.lr)
         total_steps = budget.iterations * budget.grad_steps
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, total_steps, eta_min=budget.lr / 20)
-        steps, n_feat = SPEC.plant.steps, model.inp.in_features
+        steps, n_feat = V1.steps, model.inp.in_features
         capacity = budget.buffer_iterations * budget.episodes * 3
         xs = torch.zeros((capacity, steps, n_feat))
         ys = torch.zeros(capacity)
@@ -187,7 +165,7 @@ def train_student(request: TrainRequest) -> TrainReport:
         history = []
         for it in range(budget.iterations):
             p_teacher = max(0.0, 1.0 - it / max(1.0, budget.teacher_fraction * budget.iterations))
-            episodes = sample_train_episodes(rng, budget.episodes, classes)
+            episodes = sample_episodes(rng, budget.episodes, "train", classes)
             mask = rng.random(budget.episodes) < p_teacher
             collector = _DaggerController(copy.deepcopy(model).double().eval(), config, mask)
             rollout(collector, episodes)
@@ -216,7 +194,7 @@ def train_student(request: TrainRequest) -> TrainReport:
             request.on_progress((it + 1) / budget.iterations, message)
         model.load_state_dict(best[1])
         request.on_progress(1.0, "scoring the kept checkpoint on the pinned train cells")
-        train_rate = settled_rate(model, config, classes, SPEC.n_faults, SPEC.n_seeds)
+        train_rate = settled_rate(model, config, classes, V1.n_faults, V1.n_seeds)
     finally:
         torch.set_num_threads(threads)
     out = request.out or weights_path(name)
@@ -235,15 +213,3 @@ def train_student(request: TrainRequest) -> TrainReport:
     }
     save_params(name, params, provenance, Path(out).with_suffix(".yaml"))
     return TrainReport(name, Path(out), train_rate, {"wall_s": wall_s, "history": history})
-
-
-@register_trainer("rma_student")
-def train_rma_student(request: TrainRequest) -> TrainReport:
-    """``scftc train --controller rma_student``."""
-    return train_student(request)
-
-
-@register_trainer("rma_dob")
-def train_rma_dob(request: TrainRequest) -> TrainReport:
-    """``scftc train --controller rma_dob``."""
-    return train_student(request)

@@ -7,7 +7,7 @@ log dwell error, too small to outweigh a single episode: it only ranks parameter
 the same number of episodes (the train split is easy enough that many do), preferring the one that
 settles deeper. The tuning episodes are the first ``n_faults x n_seeds`` pinned episodes of the
 train cells ``sign``, ``gain`` and ``gain_bias`` flown as one batch; ``loss`` is left out because
-no controller of the battery settles a dead axis (SPEC section 4) and it carries no signal.
+no controller of the battery settles a dead axis and it carries no signal.
 
 Budgets: ``quick`` (CI smoke test, well under 2 minutes) and ``full`` (the committed params
 files; 20 faults x 3 seeds per class, minutes per controller). After the search, the winner is
@@ -29,21 +29,23 @@ from scipy.optimize import differential_evolution
 
 from scftc_cli.baselines.adaptive import NAME as ADAPTIVE
 from scftc_cli.baselines.adaptive import AdaptiveParams, ClassicalAdaptive
-from scftc_cli.baselines.base import Controller
 from scftc_cli.baselines.icl import NAME as ICL
 from scftc_cli.baselines.icl import ICLAdaptive, ICLParams
 from scftc_cli.baselines.nussbaum import NAME as NUSSBAUM
 from scftc_cli.baselines.nussbaum import Nussbaum, NussbaumParams
+from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.pid import NAME as PID_NAME
 from scftc_cli.baselines.pid import PID, PIDParams
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
-from scftc_cli.params import save_params
+from scftc_cli.protocol import Controller
 from scftc_cli.scoring import gate_outcomes
-from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes
+from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.spec import SPEC
-from scftc_cli.training import TrainReport, TrainRequest, register_trainer
+from scftc_cli.sim.v1 import TESTBED
+from scftc_cli.sim.v1.faults import RigidEpisodes
+from scftc_cli.spec import V1
+from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
 TUNE_SPLIT = "train"
 TUNE_CLASSES: tuple[str, ...] = ("sign", "gain", "gain_bias")
@@ -181,35 +183,17 @@ SPECS: dict[str, TuneSpec] = {
 }
 
 
-def concat_episodes(parts: list[Episodes]) -> Episodes:
-    """One batch holding the episodes of several cells (of one split, no sensor fault)."""
-    cat = lambda get: np.concatenate([get(e) for e in parts])  # noqa: E731
-    return Episodes(
-        split=parts[0].split,
-        fault_class="+".join(e.fault_class for e in parts),
-        sensor=None,
-        fault=ActuatorFault(
-            cat(lambda e: e.fault.gain), cat(lambda e: e.fault.bias), cat(lambda e: e.fault.inertia_scale)
-        ),
-        sigma0=cat(lambda e: e.sigma0),
-        omega0_rad_s=cat(lambda e: e.omega0_rad_s),
-        sensor_bias_mrp=None,
-        fault_index=cat(lambda e: e.fault_index),
-        seed_index=cat(lambda e: e.seed_index),
-    )
-
-
 def tuning_episodes(n_faults: int, n_seeds: int, classes: tuple[str, ...] = TUNE_CLASSES) -> Episodes:
     """The pinned train-split episodes the tuner flies (first faults and seeds of each cell)."""
-    return concat_episodes([draw_episodes(TUNE_SPLIT, c, None, n_faults, n_seeds) for c in classes])
+    return RigidEpisodes.concat([TESTBED.draw(TUNE_SPLIT, c, None, n_faults, n_seeds) for c in classes])
 
 
 def objective(controller: Controller, episodes: Episodes) -> tuple[float, float]:
     """``(loss, settled_rate)``: ``loss = -settled_rate + tie`` (see the module docstring)."""
     result = rollout(controller, episodes)
-    settled = gate_outcomes(result)["settled"]
+    settled = gate_outcomes(result, V1.gates)["settled"]
     n = settled.size
-    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / SPEC.gates.settled_deg), -4, 4)
+    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / V1.gates.settled_deg), -4, 4)
     tie = 0.5 / n * float(np.mean(depth + 4.0) / 8.0)
     rate = float(settled.mean())
     return -rate + tie, rate
@@ -217,11 +201,7 @@ def objective(controller: Controller, episodes: Episodes) -> tuple[float, float]
 
 def train_scores(spec: TuneSpec, params: Any, n_faults: int, n_seeds: int) -> dict[str, float]:
     """Settled rate of ``params`` on each train class (incl. ``loss``, for the record)."""
-    scores = {}
-    for fault_class in SPEC.fault_classes:
-        episodes = draw_episodes(TUNE_SPLIT, fault_class, None, n_faults, n_seeds)
-        scores[fault_class] = float(gate_outcomes(rollout(spec.factory(params), episodes))["settled"].mean())
-    return scores
+    return train_settled_rates(lambda: spec.factory(params), V1.fault_classes, n_faults, n_seeds)
 
 
 def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
@@ -281,26 +261,21 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     )
 
 
-@register_trainer(PID_NAME)
 def tune_pid(request: TrainRequest) -> TrainReport:
     return tune(SPECS[PID_NAME], request)
 
 
-@register_trainer(ADAPTIVE)
 def tune_classical_adaptive(request: TrainRequest) -> TrainReport:
     return tune(SPECS[ADAPTIVE], request)
 
 
-@register_trainer(ICL)
 def tune_icl_adaptive(request: TrainRequest) -> TrainReport:
     return tune(SPECS[ICL], request)
 
 
-@register_trainer(NUSSBAUM)
 def tune_nussbaum(request: TrainRequest) -> TrainReport:
     return tune(SPECS[NUSSBAUM], request)
 
 
-@register_trainer(RLS)
 def tune_rls_dob(request: TrainRequest) -> TrainReport:
     return tune(SPECS[RLS], request)

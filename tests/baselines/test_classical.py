@@ -7,23 +7,24 @@ import numpy as np
 import pytest
 import yaml
 
-import scftc_cli.params as params_module
+import scftc_cli.baselines.params as params_module
 from scftc_cli.baselines.adaptive import AdaptiveParams, ClassicalAdaptive
-from scftc_cli.baselines.base import Context
 from scftc_cli.baselines.icl import ICLAdaptive, ICLParams
 from scftc_cli.baselines.nussbaum import Nussbaum, NussbaumParams
 from scftc_cli.baselines.observer import DisturbanceObserver, measured_torque
 from scftc_cli.baselines.pid import PID, PIDParams
 from scftc_cli.baselines.rls import RLSDob, RLSParams
 from scftc_cli.errors import ScftcError
-from scftc_cli.sim.faults import ActuatorFault, Episodes
+from scftc_cli.protocol import Progress
 from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.spec import SPEC
+from scftc_cli.sim.v1 import TESTBED, public_context
+from scftc_cli.sim.v1.faults import ActuatorFault, RigidEpisodes
+from scftc_cli.spec import V1 as SPEC
 from scftc_cli.training import TrainRequest, tuning
 
 
-def scripted(gain, bias=(0.0, 0.0, 0.0), scale=1.0, sigma0=None, omega0=None, n=4, seed=0) -> Episodes:
+def scripted(gain, bias=(0.0, 0.0, 0.0), scale=1.0, sigma0=None, omega0=None, n=4, seed=0) -> RigidEpisodes:
     """``n`` episodes of one hand-made fault; random (seeded) initial conditions unless given."""
     rng = np.random.default_rng(seed)
     sigma0 = rng.uniform(-0.5, 0.5, (n, 3)) if sigma0 is None else np.tile(sigma0, (n, 1))
@@ -31,14 +32,32 @@ def scripted(gain, bias=(0.0, 0.0, 0.0), scale=1.0, sigma0=None, omega0=None, n=
     fault = ActuatorFault(
         np.tile(np.asarray(gain, float), (n, 1)), np.tile(np.asarray(bias, float), (n, 1)), np.full(n, scale)
     )
-    return Episodes("train", "scripted", None, fault, sigma0, omega0, None, np.zeros(n, int), np.arange(n))
+    return RigidEpisodes(
+        benchmark=SPEC.version,
+        split="train",
+        fault_class="scripted",
+        sensor=None,
+        fault_index=np.zeros(n, int),
+        seed_index=np.arange(n),
+        fault=fault,
+        sigma0=sigma0,
+        omega0_rad_s=omega0,
+    )
 
 
-def trace(controller, episodes: Episodes, attribute):
+class _Recorder(Progress):
+    def __init__(self, controller, attribute) -> None:
+        self.controller, self.attribute, self.history = controller, attribute, []
+
+    def advance(self, amount: float = 1.0) -> None:
+        self.history.append(np.copy(self.attribute(self.controller)))
+
+
+def trace(controller, episodes: RigidEpisodes, attribute):
     """Fly ``episodes`` and record ``attribute(controller)`` after every step: ``(steps, ...)``."""
-    history = []
-    result = rollout(controller, episodes, on_step=lambda _k: history.append(np.copy(attribute(controller))))
-    return result, np.stack(history)
+    recorder = _Recorder(controller, attribute)
+    result = rollout(controller, episodes, progress=recorder)
+    return result, np.stack(recorder.history)
 
 
 # --- measured torque and observer ----------------------------------------------------------------
@@ -47,7 +66,7 @@ def trace(controller, episodes: Episodes, attribute):
 def test_measured_torque_recovers_theta_a_plus_beta():
     episodes = scripted(gain=(0.7, -1.3, 0.5), bias=(0.1, -0.15, 0.05), scale=1.6)
     result = rollout(RLSDob(RLSParams()), episodes, record=True)
-    context = Context(n=episodes.n)
+    context = public_context(episodes.n)
     omega = result.omega_rad_s
     dw = np.stack([measured_torque(omega[:, k], omega[:, k + 1], context) for k in range(40)], axis=1)
     expected = episodes.fault.theta[:, None] * result.commands[:, :40] + episodes.fault.beta[:, None]
@@ -141,7 +160,7 @@ def test_pid_integrator_stays_bounded_against_a_saturated_actuator():
 
 def test_pid_freezes_integration_while_saturated_and_pushing():
     controller = PID(PIDParams(ki_s3=0.001, integral_cap=1.0, integrate_below=1.0))
-    controller.reset(1, Context(n=1))
+    controller.reset(1, public_context(1))
     controller.act(np.array([[0.4, 0.0, 0.0, 0.1, 0.0, 0.0]]))  # u << -1 on axis 0, sigma > 0
     assert controller.z[0, 0] == 0.0
     controller.act(np.array([[0.01, 0.0, 0.0, 0.0, 0.0, 0.0]]))  # unsaturated: integrates
@@ -162,15 +181,15 @@ def test_a_missing_params_file_raises_instead_of_running_untuned(cls, tmp_path, 
 
 
 def test_tuning_samples_train_faults_only_and_is_deterministic(tmp_path, monkeypatch):
-    seen: list[Episodes] = []
-    original = tuning.draw_episodes
+    seen: list[RigidEpisodes] = []
+    original = TESTBED.draw
 
     def recording(split, fault_class, *args, **kwargs):
         episodes = original(split, fault_class, *args, **kwargs)
         seen.append(episodes)
         return episodes
 
-    monkeypatch.setattr(tuning, "draw_episodes", recording)
+    monkeypatch.setattr(TESTBED, "draw", recording)  # every door to the episodes: tuning and scoring
     outputs = []
     for i in range(2):
         request = TrainRequest(controller="nussbaum", seed=3, budget="quick", out=tmp_path / f"n{i}.yaml")

@@ -9,14 +9,17 @@ import pytest
 import yaml
 
 from scftc_cli.baselines.analytic import analytic_command, nominal_command
-from scftc_cli.baselines.base import Context, make_controller
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.baselines.observer import TorqueMeter
+from scftc_cli.baselines.params import WEIGHTS_DIR
 from scftc_cli.baselines.rma import StudentConfig, StudentController, ThetaStudent, load_student
 from scftc_cli.evaluate import Cell, evaluate_cell
-from scftc_cli.params import WEIGHTS_DIR
-from scftc_cli.sim.faults import ActuatorFault, Episodes, draw_episodes
+from scftc_cli.protocol import Context
+from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.v1 import public_context
+from scftc_cli.sim.v1.faults import ActuatorFault, RigidEpisodes, draw_episodes
+from scftc_cli.spec import V1
 from scftc_cli.training.rma import OBSERVER_GAIN
 
 LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
@@ -60,16 +63,16 @@ def test_student_identifies_authorities_far_outside_the_train_range(name: str) -
     n = len(gains)
     biases = np.zeros((n, 3)) if name == "rma_student" else np.array([[0.05, -0.1, 0.08]] * n)
     rng = np.random.default_rng(7)
-    episodes = Episodes(
-        "train",
-        "extrapolation",
-        None,
-        ActuatorFault(gains, biases, np.ones(n)),
-        rng.uniform(-0.5, 0.5, (n, 3)),
-        rng.uniform(-0.02, 0.02, (n, 3)),
-        None,
-        np.arange(n),
-        np.zeros(n, dtype=int),
+    episodes = RigidEpisodes(
+        benchmark=V1.version,
+        split="train",
+        fault_class="extrapolation",
+        sensor=None,
+        fault_index=np.arange(n),
+        seed_index=np.zeros(n, dtype=int),
+        fault=ActuatorFault(gains, biases, np.ones(n)),
+        sigma0=rng.uniform(-0.5, 0.5, (n, 3)),
+        omega0_rad_s=rng.uniform(-0.02, 0.02, (n, 3)),
     )
     model, config = load_student(name)
     controller = _Recording(model=model, config=config)
@@ -106,7 +109,7 @@ class _WrongGainWithObserver(StudentController):
     def reset(self, n: int, context: Context) -> None:
         assert context.fault is not None
         self.wrong_theta = self.factor * context.fault.theta
-        super().reset(n, Context(n=n))
+        super().reset(n, public_context(n))
         self.meter = TorqueMeter(self.context)
         self.residuals: list[np.ndarray] = []
         self.true_beta, self.true_theta = context.fault.beta, context.fault.theta
@@ -187,9 +190,9 @@ def test_committed_weights_load_with_provenance(name: str) -> None:
 @pytest.mark.parametrize("name", LEARNED)
 def test_eval_is_deterministic(name: str) -> None:
     cell = Cell("test", "gain_bias")
-    first = evaluate_cell(make_controller(name), cell, n_faults=4, n_seeds=2)
-    again = evaluate_cell(make_controller(name), cell, n_faults=4, n_seeds=2)
-    assert first == again
+    first = evaluate_cell(lambda _c: make_controller(name), V1, cell, n_faults=4, n_seeds=2)
+    again = evaluate_cell(lambda _c: make_controller(name), V1, cell, n_faults=4, n_seeds=2)
+    assert first.result == again.result
 
 
 @pytest.mark.slow

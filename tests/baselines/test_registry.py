@@ -1,27 +1,51 @@
-"""Every registered controller passes the protocol checker; the registry helps with typos."""
+"""Every registered controller passes the protocol checker; the registry is data, helps with
+typos and refuses a controller on a benchmark version it does not fly."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
-from scftc_cli.baselines.base import controller_info, make_controller, registry
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.errors import UnknownNameError
+from scftc_cli.registry import BUILTINS, controller_spec, make_controller, registry
 
 
-@pytest.mark.parametrize("name", sorted(registry()))
+@pytest.mark.parametrize("name", sorted(registry(None)))
 def test_every_registered_controller_passes_the_checker(name):
-    check_controller(make_controller(name))
+    entry = registry(None)[name]
+    for benchmark in entry.benchmarks:
+        check_controller(make_controller(name, benchmark), benchmark=benchmark)
 
 
-def test_oracles_are_flagged_privileged_and_others_are_not():
-    entries = registry()
-    assert entries["teacher"].privileged and entries["bias_oracle"].privileged
-    assert not entries["pd"].privileged
+@pytest.mark.parametrize("entry", BUILTINS, ids=lambda e: e.name)
+def test_the_registry_says_what_the_class_is(entry):
+    cls = entry.load()
+    assert cls.privileged is entry.privileged
+    for artifact in entry.artifact_paths():
+        assert artifact.is_file(), artifact
+
+
+def test_oracles_are_flagged_privileged_and_listed_last():
+    entries = list(registry().values())
+    assert [e.name for e in entries if e.privileged] == ["teacher", "bias_oracle"]
+    assert entries[-2:] == [e for e in entries if e.privileged]
+    assert not registry()["pd"].privileged
 
 
 def test_unknown_name_suggests_the_closest():
     with pytest.raises(UnknownNameError, match="did you mean `teacher`"):
-        controller_info("teacher_")
+        controller_spec("teacher_")
     with pytest.raises(KeyError):  # catchable as the built-in it subclasses
-        controller_info("nope")
+        controller_spec("nope")
+
+
+def test_listing_the_battery_imports_no_controller_module():
+    code = (
+        "import sys; from scftc_cli.registry import registry; registry(None); "
+        "assert not [m for m in sys.modules if m.startswith('scftc_cli.baselines')], sys.modules.keys(); "
+        "assert 'torch' not in sys.modules"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -1,0 +1,65 @@
+"""Tuned parameters on disk: ``scftc_cli/params/<controller>.yaml``, with provenance.
+
+A params file is small, versioned and committed; ``scftc eval`` reads it and never tunes.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel
+
+from scftc_cli import __version__
+from scftc_cli.errors import ScftcError
+
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+PARAMS_DIR = PACKAGE_DIR / "params"
+WEIGHTS_DIR = PACKAGE_DIR / "weights"
+
+
+class Provenance(BaseModel):
+    """How an artifact was made, so that anyone can regenerate it."""
+
+    command: str
+    seed: int
+    budget: str
+    train_settled_rate: float
+    benchmark_version: str = "scftc-v1"
+    package_version: str = __version__
+    created_utc: str = ""
+    notes: str = ""
+
+
+class ParamsFile(BaseModel):
+    controller: str
+    params: dict[str, Any]
+    provenance: Provenance
+
+
+def params_path(controller: str) -> Path:
+    return PARAMS_DIR / f"{controller}.yaml"
+
+
+def save_params(
+    controller: str, params: dict[str, Any], provenance: Provenance, path: Path | None = None
+) -> Path:
+    """Write a params file (creating folders); returns its path."""
+    path = path or params_path(controller)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not provenance.created_utc:
+        stamp = dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat()
+        provenance = provenance.model_copy(update={"created_utc": stamp})
+    doc = ParamsFile(controller=controller, params=params, provenance=provenance)
+    path.write_text(yaml.safe_dump(doc.model_dump(mode="json"), sort_keys=False))
+    return path
+
+
+def load_params(controller: str, path: Path | None = None) -> ParamsFile:
+    """Read and validate a params file; a missing one names the command that makes it."""
+    path = path or params_path(controller)
+    if not path.exists():
+        raise ScftcError(f"no tuned parameters at {path}; run `scftc train --controller {controller}`")
+    return ParamsFile.model_validate(yaml.safe_load(path.read_text()))

@@ -1,0 +1,137 @@
+"""Leaderboard files: tamper-evident reads, atomic locked writes.
+
+Every read validates the whole file (``board/models.py``), so a corrupt or hand-edited file is
+refused with the fix, and never overwritten. Every write holds a ``filelock.FileLock``, re-reads
+the board, increments its version, and replaces the file atomically (temporary file, fsync,
+rename): readers see the old board or the new one, never half of either.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from filelock import FileLock, Timeout
+from pydantic import ValidationError
+
+from scftc_cli.board.models import Leaderboard, empty_board
+from scftc_cli.errors import LeaderboardError
+
+LOCK_TIMEOUT_S = 300.0
+FIX_CORRUPT = "restore it (`git checkout -- {path}`) or regenerate it (`scftc leaderboard rebuild{flag}`)"
+
+
+def utc_now() -> str:
+    return dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+def repo_root() -> Path:
+    return Path(__file__).resolve().parent.parent.parent
+
+
+def default_board_path(benchmark: str) -> Path:
+    """``leaderboard/<benchmark>.json`` under the current directory if there is one, else the
+    checkout's."""
+    local = Path("leaderboard") / f"{benchmark}.json"
+    return local if local.exists() else repo_root() / "leaderboard" / f"{benchmark}.json"
+
+
+def default_submissions_dir(board_path: Path) -> Path:
+    """``submissions/`` next to the board's folder (the repo root for the committed board)."""
+    return board_path.resolve().parent.parent / "submissions"
+
+
+def read_board(path: Path, benchmark: str, *, missing_ok: bool = False) -> Leaderboard:
+    """The validated board of ``benchmark`` at ``path``; a missing one is empty only when
+    ``missing_ok``."""
+    path = Path(path)
+    flag = f" --benchmark {benchmark} --leaderboard {path}"
+    fix = FIX_CORRUPT.format(path=path, flag=flag)
+    if not path.exists():
+        if missing_ok:
+            return empty_board(benchmark)
+        raise LeaderboardError(f"no leaderboard at {path}; create it with `scftc leaderboard rebuild{flag}`")
+    try:
+        raw = json.loads(path.read_bytes())
+    except (ValueError, UnicodeDecodeError) as err:
+        raise LeaderboardError(
+            f"leaderboard {path} is not valid JSON ({err}); {fix}; it was left untouched"
+        ) from None
+    try:
+        board = Leaderboard.model_validate(raw)
+    except ValidationError as err:
+        first = err.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "document"
+        msg = first["msg"].removeprefix("Value error, ")
+        more = f" (+{err.error_count() - 1} more)" if err.error_count() > 1 else ""
+        raise LeaderboardError(
+            f"leaderboard {path} fails validation at {where}: {msg}{more}; it was corrupted or edited by "
+            f"hand: {fix}; it was left untouched"
+        ) from None
+    if board.benchmark_version != benchmark:
+        raise LeaderboardError(
+            f"leaderboard {path} is the {board.benchmark_version} board, not {benchmark}'s; "
+            f"pass --benchmark {board.benchmark_version} or another --leaderboard"
+        )
+    return board
+
+
+def board_text(board: Leaderboard) -> str:
+    return json.dumps(board.model_dump(mode="json", by_alias=True), indent=1) + "\n"
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    """Temporary file in the same folder, fsync, then ``os.replace``: readers see old or new."""
+    mode = path.stat().st_mode & 0o777 if path.exists() else 0o644
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    dir_fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def update_board(
+    path: Path,
+    benchmark: str,
+    change: Callable[[Leaderboard], Leaderboard],
+    *,
+    lock_timeout_s: float = LOCK_TIMEOUT_S,
+) -> Leaderboard:
+    """Apply ``change`` to the current board under the lock; write it with ``version + 1``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with FileLock(f"{path}.lock", timeout=lock_timeout_s):
+            current = read_board(path, benchmark, missing_ok=True)
+            changed = change(current.model_copy(deep=True))
+            new = Leaderboard.model_validate(
+                {
+                    **changed.model_dump(by_alias=True),
+                    "version": current.version + 1,
+                    "updated_utc": utc_now(),
+                }
+            )
+            text = board_text(new)
+            Leaderboard.model_validate_json(text)  # what lands on disk must read back
+            _atomic_write(path, text)
+            return new
+    except Timeout:
+        raise LeaderboardError(
+            f"another process holds {path}.lock for more than {lock_timeout_s:g} s; wait for it to finish, "
+            "or delete the lock file if no scftc process is running"
+        ) from None

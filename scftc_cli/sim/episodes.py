@@ -1,0 +1,101 @@
+"""Episodes and their seeds: what every benchmark version's draws have in common.
+
+A cell's episodes come from ``numpy.random.SeedSequence``s keyed by the benchmark version, the
+split, the class and the episode's index (``seed_sequence``); a ``salt`` keys a sealed draw
+instead. Each version subclasses ``Episodes`` with its own fault and initial-state arrays; the
+generic ``subset`` and ``concat`` work on any subclass whose batch arrays lead with ``n``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from dataclasses import dataclass
+from typing import Any, Self
+
+import numpy as np
+
+
+def seed_sequence(
+    version: str, *key: str, index: tuple[int, ...], salt: bytes = b""
+) -> np.random.SeedSequence:
+    """A ``SeedSequence`` keyed by ``version``, the names in ``key`` and ``index``.
+
+    The entropy is the first 16 bytes (little-endian) of ``sha256("|".join((version, *key)) + salt)``
+    and ``index`` is the spawn key, so every stream is independent of every other and of how many
+    episodes a cell holds.
+    """
+    digest = hashlib.sha256("|".join((version, *key)).encode() + salt).digest()
+    return np.random.SeedSequence(int.from_bytes(digest[:16], "little"), spawn_key=index)
+
+
+def generator(version: str, *key: str, index: tuple[int, ...], salt: bytes = b"") -> np.random.Generator:
+    """``np.random.default_rng`` of ``seed_sequence(...)``."""
+    return np.random.default_rng(seed_sequence(version, *key, index=index, salt=salt))
+
+
+def _take(value: Any, idx: np.ndarray | slice, n: int) -> Any:
+    if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
+        return value[idx]
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.replace(
+            value, **{f.name: _take(getattr(value, f.name), idx, n) for f in dataclasses.fields(value)}
+        )
+    return value
+
+
+def _join(values: list[Any]) -> Any:
+    first = values[0]
+    if isinstance(first, np.ndarray):
+        return np.concatenate(values)
+    if dataclasses.is_dataclass(first) and not isinstance(first, type):
+        return dataclasses.replace(
+            first, **{f.name: _join([getattr(v, f.name) for v in values]) for f in dataclasses.fields(first)}
+        )
+    return first
+
+
+@dataclass(frozen=True)
+class Episodes:
+    """A batch of episodes of one benchmark version (subclassed per version).
+
+    Attributes:
+        benchmark: the version that defines them.
+        split, fault_class, sensor: the cell they belong to (``sensor`` ``None``: healthy sensors).
+        fault_index, seed_index: ``(n,)`` which fault and which initial-condition seed of the cell.
+    """
+
+    benchmark: str
+    split: str
+    fault_class: str
+    sensor: str | None
+    fault_index: np.ndarray
+    seed_index: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.fault_index)
+
+    def subset(self, idx: np.ndarray | slice) -> Self:
+        """The episodes at ``idx`` (every batch array sliced alike)."""
+        return _take(self, idx, self.n)
+
+    @classmethod
+    def concat(cls, parts: list[Self]) -> Self:
+        """One batch of several batches' episodes (their cell labels joined with ``+``)."""
+        joined = _join(parts)
+        label = "+".join(dict.fromkeys(p.fault_class for p in parts))
+        return dataclasses.replace(joined, fault_class=label)
+
+    def readonly(self) -> Self:
+        """Mark every batch array read-only (cached draws are shared between callers)."""
+
+        def freeze(value: Any) -> None:
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+            elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+                for f in dataclasses.fields(value):
+                    freeze(getattr(value, f.name))
+
+        freeze(self)
+        return self

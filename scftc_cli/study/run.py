@@ -1,0 +1,289 @@
+"""The whole study from one call: the battery, the sensor table and the example trajectories.
+
+``run_study`` scores every registered controller of a benchmark version on its held-out actuator
+classes, and a deployed controller plus the ``teacher`` on its sensor faults, with exactly the calls
+``scftc eval`` makes (``evaluate.evaluate_cells``: every number here is the number ``scftc eval``
+prints for the same cell), and flies one pinned episode per class for the trajectory figure.
+``study/tables.py`` turns the records into tables, ``study/figures.py`` into figures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel
+
+from scftc_cli.errors import ScftcError
+from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, select_cells
+from scftc_cli.protocol import NO_PROGRESS, Progress
+from scftc_cli.records import EvalResult, collect_provenance
+from scftc_cli.registry import ControllerSpec, registry
+from scftc_cli.sim.mrp import principal_angle_deg
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.testbed import testbed
+from scftc_cli.spec import BenchmarkSpec
+
+Regime = Literal["controllable", "shield-only"]
+DEPLOYED_PREFERENCE = "rma_dob"  # the deployed controller of the source study
+ORACLE_FOR_SENSORS = "teacher"
+BACKEND = "numpy"
+REGIME_RULE = (
+    "controllable: the star tracker reports the true attitude offset by a constant rotation strictly "
+    "smaller than the settled gate, so driving the measured attitude to zero also settles the true one; "
+    "shield-only: the offset is at or above the gate (a constant bias is unobservable from "
+    "[sigma_meas, w], so the truth parks at the bias: at exactly the gate, rounding decides) or the "
+    "attitude is not measured at all (dropout, stuck) - only an independent reference or a safety "
+    "shield can help."
+)
+
+
+class StudyError(ScftcError, RuntimeError):
+    """A registered controller could not be loaded or flown; the study is incomplete."""
+
+
+class BatteryReport(BaseModel):
+    """``battery.json``: every registered controller on every held-out actuator class.
+
+    ``results`` holds, per controller, exactly the document ``scftc eval --format json`` prints.
+    """
+
+    benchmark_version: str
+    backend: str = BACKEND
+    n_faults: int
+    n_seeds: int
+    results: list[EvalResult]
+
+
+class SensorReport(BaseModel):
+    """``sensor.json``: the deployed controller and the teacher on the sensor faults."""
+
+    benchmark_version: str
+    backend: str = BACKEND
+    n_faults: int
+    n_seeds: int
+    deployed: str | None
+    deployed_reason: str
+    gate_deg: float
+    regime_rule: str = REGIME_RULE
+    regimes: dict[str, Regime]
+    results: list[EvalResult]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """The true pointing error of one pinned episode (fault 0, seed 0 of a held-out class).
+
+    Attributes:
+        error_deg: ``(steps + 1,)`` error at t = 0, dt, ..., steps dt.
+        gain, bias: the episode's per-actuator effectiveness and bias; ``inertia_scale`` its ``f``.
+    """
+
+    controller: str
+    privileged: bool
+    fault_class: str
+    gain: np.ndarray
+    bias: np.ndarray
+    inertia_scale: float
+    error_deg: np.ndarray
+    dt_s: float
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """``(steps + 1,)`` time of each sample in s."""
+        return self.dt_s * np.arange(self.error_deg.size)
+
+
+@dataclass(frozen=True)
+class Study:
+    spec: BenchmarkSpec
+    battery: BatteryReport
+    sensor: SensorReport
+    trajectories: list[Trajectory]
+    runs: dict[str, list[CellRun]]  # per controller, its battery and sensor cells (episode outcomes)
+
+
+def sensor_bias_deg(sensor: str) -> float | None:
+    """The attitude-measurement offset of ``bias_*`` sensor faults in deg; ``None`` otherwise."""
+    return float(sensor.removeprefix("bias_")) if sensor.startswith("bias_") else None
+
+
+def sensor_regime(sensor: str, gate_deg: float) -> Regime:
+    """Whether ``sensor`` can in principle be fought from the observation (see ``REGIME_RULE``).
+
+    ``bias_0.2`` sits exactly on the gate: the truth parks at 0.2 deg, so passing is rounding
+    luck, not control; it counts as shield-only.
+    """
+    bias = sensor_bias_deg(sensor)
+    return "controllable" if bias is not None and bias < gate_deg else "shield-only"
+
+
+def sensor_controller_count(entries: dict[str, ControllerSpec]) -> int:
+    """How many controllers the sensor table will fly (known before the battery has run)."""
+    deployable = any(not i.privileged for i in entries.values())
+    return int(deployable) + int(ORACLE_FOR_SENSORS in entries)
+
+
+def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
+    """Simulation steps ``run_study`` takes (progress bar total): the battery, the trajectories
+    (one batch per class and controller) and the sensor table."""
+    entries = registry(spec.version) if entries is None else entries
+    n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
+    rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(entries)
+    return rollouts * spec.steps
+
+
+def choose_deployed(battery: list[EvalResult]) -> tuple[str | None, str]:
+    """The deployable controller the sensor table flies, and why.
+
+    ``rma_dob`` (the source study's deployed controller) when registered; otherwise the deployable
+    controller with the highest mean settled rate on ``sign`` and ``gain`` (ties: higher
+    ``gain_bias`` settled rate, then battery order).
+    """
+    deployable = [r for r in battery if not r.privileged]
+    for r in deployable:
+        if r.controller == DEPLOYED_PREFERENCE:
+            return r.controller, f"`{DEPLOYED_PREFERENCE}`, the deployed controller of the source study"
+    if not deployable:
+        return None, "no deployable controller is registered"
+
+    def score(r: EvalResult) -> tuple[float, float]:
+        rate = {c.fault_class: c.settled.rate for c in r.cells}
+        return (rate.get("sign", 0.0) + rate.get("gain", 0.0)) / 2, rate.get("gain_bias", 0.0)
+
+    best = max(deployable, key=score)  # max keeps the first of equals: battery order breaks ties
+    return best.controller, (
+        f"`{DEPLOYED_PREFERENCE}` is not registered; `{best.controller}` has the highest mean settled "
+        f"rate on held-out sign and gain ({100 * score(best)[0]:.1f} %) among deployable controllers"
+    )
+
+
+def _fly(
+    entry: ControllerSpec,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    n_faults: int,
+    n_seeds: int,
+    progress: Progress,
+) -> list[CellRun]:
+    """``evaluate_cells`` for one controller. A controller that fails to load or fly stops the study
+    with an error naming it: a battery with a silently missing row would misreport the study."""
+    try:
+        return evaluate_cells(
+            lambda _cell: entry.make(),
+            spec,
+            cells,
+            n_faults=n_faults,
+            n_seeds=n_seeds,
+            progress=progress,
+            label=entry.name,
+        )
+    except ScftcError as err:
+        raise StudyError(f"controller `{entry.name}` failed: {err}") from err
+    except Exception as err:  # a missing weights file, a broken import inside the controller...
+        raise StudyError(f"controller `{entry.name}` failed: {type(err).__name__}: {err}") from err
+
+
+def _result(entry: ControllerSpec, spec: BenchmarkSpec, runs: list[CellRun]) -> EvalResult:
+    """What ``scftc eval --format json`` prints for the same controller and cells."""
+    result = eval_result(entry.name, entry.privileged, spec, runs, BACKEND)
+    return result.model_copy(update={"provenance": collect_provenance(entry.artifact_paths())})
+
+
+def preflight(entries: list[ControllerSpec]) -> None:
+    """Build every controller once before any simulation, so that missing weights or params fail
+    in seconds and all at once, naming every controller that cannot load."""
+    failures = []
+    for entry in entries:
+        try:
+            entry.make()
+        except Exception as err:  # a missing artifact raises ScftcError; a broken one anything
+            failures.append(f"`{entry.name}` ({type(err).__name__}: {err})")
+    if failures:
+        raise StudyError(f"{len(failures)} registered controller(s) failed to load: " + "; ".join(failures))
+
+
+def example_trajectories(
+    entries: list[ControllerSpec], spec: BenchmarkSpec, progress: Progress = NO_PROGRESS
+) -> list[Trajectory]:
+    """Every controller on the first pinned episode (fault 0, seed 0) of each held-out class.
+
+    The episode is fixed by the seeds, not chosen by outcome.
+    """
+    bed = testbed(spec.version)
+    out = []
+    for fault_class in spec.fault_classes:
+        episode = bed.draw("test", fault_class, None, n_faults=1, n_seeds=1)
+        for entry in entries:
+            progress.describe(f"trajectory: {entry.name} on {fault_class}")
+            try:
+                result = rollout(entry.make(), episode, record=True, progress=progress)
+            except Exception as err:
+                raise StudyError(f"controller `{entry.name}` failed on {fault_class}: {err}") from err
+            fault = episode.fault  # type: ignore[attr-defined]
+            out.append(
+                Trajectory(
+                    controller=entry.name,
+                    privileged=entry.privileged,
+                    fault_class=fault_class,
+                    gain=fault.gain[0],
+                    bias=fault.bias[0],
+                    inertia_scale=float(fault.inertia_scale[0]),
+                    error_deg=principal_angle_deg(result.sigma[0]),
+                    dt_s=spec.dt_s,
+                )
+            )
+    return out
+
+
+def run_study(
+    spec: BenchmarkSpec,
+    n_faults: int | None = None,
+    n_seeds: int | None = None,
+    *,
+    progress: Progress = NO_PROGRESS,
+) -> Study:
+    """Run the battery, the sensor table and the example trajectories of ``spec``'s version.
+
+    Args:
+        n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
+            default; fewer for tests: the first faults and seeds of a cell do not depend on these).
+        progress: told what runs and advanced after each simulated step.
+    """
+    n_faults = spec.n_faults if n_faults is None else n_faults
+    n_seeds = spec.n_seeds if n_seeds is None else n_seeds
+    entries = registry(spec.version)
+    battery_order = list(entries.values())
+    preflight(battery_order)
+    actuator_cells = select_cells(spec, "test", None, None)
+    runs = {e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress) for e in battery_order}
+    battery = [_result(e, spec, runs[e.name]) for e in battery_order]
+
+    deployed, reason = choose_deployed(battery)
+    sensor_names = [n for n in (deployed, ORACLE_FOR_SENSORS) if n is not None and n in entries]
+    sensor_cells = select_cells(spec, "test", None, "all")
+    sensor_results = []
+    for name in sensor_names:
+        sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress)
+        runs[name] = runs[name] + sensor_runs
+        sensor_results.append(_result(entries[name], spec, sensor_runs))
+    gate = spec.gates.settled_deg
+    return Study(
+        spec=spec,
+        battery=BatteryReport(
+            benchmark_version=spec.version, n_faults=n_faults, n_seeds=n_seeds, results=battery
+        ),
+        sensor=SensorReport(
+            benchmark_version=spec.version,
+            n_faults=n_faults,
+            n_seeds=n_seeds,
+            deployed=deployed,
+            deployed_reason=reason,
+            gate_deg=gate,
+            regimes={s: sensor_regime(s, gate) for s in spec.sensor_faults},
+            results=sensor_results,
+        ),
+        trajectories=example_trajectories(battery_order, spec, progress),
+        runs=runs,
+    )

@@ -1,0 +1,128 @@
+"""The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import BaseModel
+
+from scftc_cli.records import CellResult, EvalResult
+from scftc_cli.render import markdown_table, pct
+from scftc_cli.study.run import Study
+
+
+def _label(result: EvalResult) -> str:
+    return f"{result.controller} (privileged)" if result.privileged else result.controller
+
+
+def _cells_by_class(result: EvalResult) -> dict[str, CellResult]:
+    return {c.fault_class: c for c in result.cells}
+
+
+def battery_markdown(study: Study) -> str:
+    """The battery: a settled-rate matrix (controller x class), then every gate of every cell."""
+    spec, report = study.spec, study.battery
+    n = report.n_faults * report.n_seeds
+    classes = list(spec.fault_classes)
+    gates = spec.gates
+    head = (
+        f"# SCFTC battery ({report.benchmark_version}, held-out test split)\n\n"
+        f"n = {n} episodes per cell ({report.n_faults} faults x {report.n_seeds} initial conditions), "
+        f"{report.backend} backend, scored on the true state. Settled: pointing error <= "
+        f"{gates.settled_deg} deg over the final {gates.dwell_steps} steps "
+        f"({gates.dwell_steps * spec.dt_s:g} s); operational: <= {gates.operational_deg} deg over "
+        f"the same window; touch-once: <= {gates.touch_deg} deg at least once. Rates in % with Wilson 95 % "
+        "intervals. Privileged controllers are oracles fed the true fault: upper bounds, listed apart and "
+        "never ranked with deployable ones.\n\n"
+        "Regenerate with `scftc reproduce`.\n\n"
+        "## Settled rate, % [Wilson 95 % CI]\n\n"
+    )
+    rows = []
+    for result in report.results:
+        by_class = _cells_by_class(result)
+        rows.append([_label(result), *(pct(by_class[c].settled) if c in by_class else "-" for c in classes)])
+    summary = markdown_table(["controller", *classes], rows)
+    detail_rows = []
+    for result in report.results:
+        for cell in result.cells:
+            detail_rows.append(
+                [
+                    _label(result),
+                    cell.fault_class,
+                    f"{cell.settled.k}/{cell.n}",
+                    pct(cell.settled),
+                    pct(cell.operational),
+                    pct(cell.touch_once),
+                    f"{cell.final_error_deg.median:.3g} / {cell.final_error_deg.mean:.3g}",
+                ]
+            )
+    detail = markdown_table(
+        [
+            "controller",
+            "class",
+            "settled k/n",
+            "settled %",
+            "operational %",
+            "touch-once %",
+            "final error deg (median / mean)",
+        ],
+        detail_rows,
+    )
+    return (
+        head
+        + summary
+        + "\n## Every cell: touching the tolerance vs holding it\n\n"
+        + "The gap between touch-once and settled is the share of episodes that passed through the "
+        "tolerance and did not stay.\n\n" + detail
+    )
+
+
+def sensor_markdown(study: Study) -> str:
+    """The sensor table: per sensor fault and controller, settled rate, final error and regime."""
+    report = study.sensor
+    n = report.n_faults * report.n_seeds
+    head = (
+        f"# Sensor faults ({report.benchmark_version}, on held-out `sign` faults)\n\n"
+        f"n = {n} episodes per cell, scored on the true state. Deployed controller: "
+        f"{report.deployed_reason}. The teacher is a privileged oracle (true actuator fault, same "
+        "corrupted observation).\n\n"
+        f"Regime rule. {report.regime_rule}\n\n"
+        "Regenerate with `scftc reproduce`.\n\n"
+    )
+    rows = []
+    for sensor in study.spec.sensor_faults:
+        for result in report.results:
+            cell = next(c for c in result.cells if c.sensor == sensor)
+            rows.append(
+                [
+                    sensor,
+                    report.regimes[sensor],
+                    _label(result),
+                    f"{cell.settled.k}/{cell.n}",
+                    pct(cell.settled),
+                    f"{cell.final_error_deg.median:.4g}",
+                ]
+            )
+    headers = ["sensor fault", "regime", "controller", "settled k/n", "settled %", "final error deg (median)"]
+    return head + markdown_table(headers, rows)
+
+
+def _dump_json(model: BaseModel) -> str:
+    return model.model_dump_json(by_alias=True, indent=2) + "\n"
+
+
+def write_tables(study: Study, out_dir: Path) -> list[Path]:
+    """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    contents = {
+        "battery.md": battery_markdown(study),
+        "battery.json": _dump_json(study.battery),
+        "sensor.md": sensor_markdown(study),
+        "sensor.json": _dump_json(study.sensor),
+    }
+    paths = []
+    for name, text in contents.items():
+        path = out_dir / name
+        path.write_text(text)
+        paths.append(path)
+    return paths

@@ -1,0 +1,95 @@
+"""``scftc eval`` through the CLI: the JSON contract, exit codes, and the oracle calibration."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from scftc_cli.commands.app import app
+
+runner = CliRunner()
+
+
+def _eval_json(*args: str) -> dict:
+    result = runner.invoke(app, ["eval", *args, "--format", "json"])
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+def test_json_output_carries_its_provenance():
+    doc = _eval_json("--controller", "rls_dob", "--class", "sign", "--n-faults", "1", "--n-seeds", "1")
+    prov = doc["provenance"]
+    assert prov["package_version"] and prov["python"].count(".") == 2
+    assert {"numpy", "numba", "scipy"} <= set(prov["libraries"])
+    (path, digest), *_ = prov["artifacts"].items()
+    assert path == "scftc_cli/params/rls_dob.yaml" and len(digest) == 64
+    assert prov["git_commit"] is None or len(prov["git_commit"]) == 40
+
+
+def test_json_output_has_the_contract_fields():
+    doc = _eval_json("--controller", "pd", "--class", "gain_bias", "--n-faults", "2", "--n-seeds", "2")
+    assert set(doc) == {"benchmark_version", "controller", "privileged", "backend", "cells", "provenance"}
+    assert (doc["benchmark_version"], doc["controller"], doc["privileged"], doc["backend"]) == (
+        "scftc-v1",
+        "pd",
+        False,
+        "numpy",
+    )
+    (cell,) = doc["cells"]
+    assert set(cell) == {
+        "split",
+        "class",
+        "sensor",
+        "n",
+        "settled",
+        "operational",
+        "touch_once",
+        "final_error_deg",
+    }
+    assert (cell["split"], cell["class"], cell["sensor"], cell["n"]) == ("test", "gain_bias", None, 4)
+    for gate in ("settled", "operational", "touch_once"):
+        assert set(cell[gate]) == {"k", "rate", "ci_low", "ci_high"}
+        assert cell[gate]["ci_low"] <= cell[gate]["rate"] <= cell[gate]["ci_high"]
+    assert set(cell["final_error_deg"]) == {"median", "mean"}
+
+
+def test_sensor_all_gives_six_cells_on_sign_faults():
+    doc = _eval_json("--controller", "teacher", "--sensor", "all", "--n-faults", "1", "--n-seeds", "1")
+    assert [c["sensor"] for c in doc["cells"]] == [
+        "bias_0.1",
+        "bias_0.2",
+        "bias_0.3",
+        "bias_0.5",
+        "dropout",
+        "stuck",
+    ]
+    assert {c["class"] for c in doc["cells"]} == {"sign"} and doc["privileged"] is True
+
+
+@pytest.mark.parametrize(
+    ("args", "listed"),
+    [
+        (["--controller", "rma_dop"], "teacher"),
+        (["--controller", "pd", "--class", "sig"], "gain_bias"),
+        (["--controller", "pd", "--sensor", "bias_0.4"], "dropout"),
+        (["--controller", "pd", "--split", "validation"], "train"),
+        (["--controller", "pd", "--class", "gain", "--sensor", "dropout"], "sign"),
+    ],
+)
+def test_unknown_names_exit_2_and_list_the_valid_ones(args, listed):
+    result = runner.invoke(app, ["eval", *args])
+    assert result.exit_code == 2
+    assert listed in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_oracles_and_pd_reproduce_the_spec_calibration():
+    """The calibration point: teacher ~100 % on sign/gain and 0 % on gain_bias; bias oracle ~96 %."""
+    teacher = {c["class"]: c["settled"]["rate"] for c in _eval_json("--controller", "teacher")["cells"]}
+    assert teacher["sign"] >= 0.99 and teacher["gain"] >= 0.99 and teacher["gain_bias"] == 0.0
+    oracle = _eval_json("--controller", "bias_oracle", "--class", "gain_bias")["cells"][0]
+    assert oracle["n"] == 500 and 0.90 <= oracle["settled"]["rate"] <= 1.0
+    pd = _eval_json("--controller", "pd", "--class", "sign")["cells"][0]
+    assert pd["settled"]["rate"] == 0.0

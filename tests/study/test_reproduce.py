@@ -1,0 +1,216 @@
+"""``scftc reproduce`` on a reduced size: every file written, the JSON equal to ``scftc eval``'s,
+real images, the sensor regime rule, and the sensor-bias floor on the true attitude."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib.image
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from scftc_cli.commands.app import app
+from scftc_cli.protocol import Controller, Progress
+from scftc_cli.records import CellResult, EvalResult, FinalError, GateStat
+from scftc_cli.registry import ControllerSpec, make_controller, registry
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.v1.faults import draw_episodes
+from scftc_cli.spec import V1 as SPEC
+from scftc_cli.study import run as study_run
+from scftc_cli.study.figures import FIGURES
+from scftc_cli.study.run import (
+    StudyError,
+    choose_deployed,
+    planned_steps,
+    run_study,
+    sensor_bias_deg,
+    sensor_regime,
+)
+
+runner = CliRunner()
+N_FAULTS, N_SEEDS = 2, 2
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+TABLES = ("battery.md", "battery.json", "sensor.md", "sensor.json")
+
+
+@pytest.fixture(scope="module")
+def study_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("results")
+    args = ["reproduce", "--out", str(out), "--n-faults", str(N_FAULTS), "--n-seeds", str(N_SEEDS)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def _eval_json(*args: str) -> dict:
+    sizes = ("--n-faults", str(N_FAULTS), "--n-seeds", str(N_SEEDS), "--format", "json")
+    result = runner.invoke(app, ["eval", *args, *sizes])
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+@pytest.mark.slow
+def test_writes_every_table_and_figure(study_dir: Path) -> None:
+    expected = set(TABLES) | {f"{stem}.{ext}" for stem in FIGURES for ext in ("png", "svg")}
+    assert expected <= {p.name for p in study_dir.iterdir()}
+    for name in expected:
+        assert (study_dir / name).stat().st_size > 0, name
+
+
+@pytest.mark.slow
+def test_battery_json_is_what_eval_prints_for_every_registered_controller(study_dir: Path) -> None:
+    doc = json.loads((study_dir / "battery.json").read_text())
+    names = [r["controller"] for r in doc["results"]]
+    assert names == list(registry())  # nobody silently missing, in battery order
+    assert (doc["n_faults"], doc["n_seeds"]) == (N_FAULTS, N_SEEDS)
+    for result in doc["results"]:
+        assert [c["class"] for c in result["cells"]] == list(SPEC.fault_classes)
+        assert result == _eval_json("--controller", result["controller"])
+
+
+@pytest.mark.slow
+def test_sensor_json_is_what_eval_prints_and_holds_the_teacher(study_dir: Path) -> None:
+    doc = json.loads((study_dir / "sensor.json").read_text())
+    names = [r["controller"] for r in doc["results"]]
+    assert "teacher" in names and doc["deployed"] in names
+    assert not next(r for r in doc["results"] if r["controller"] == doc["deployed"])["privileged"]
+    assert doc["regimes"] == {s: sensor_regime(s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults}
+    for result in doc["results"]:
+        assert [c["sensor"] for c in result["cells"]] == list(SPEC.sensor_faults)
+        assert result == _eval_json("--controller", result["controller"], "--sensor", "all")
+
+
+@pytest.mark.slow
+def test_markdown_tables_hold_every_cell(study_dir: Path) -> None:
+    battery_md = (study_dir / "battery.md").read_text()
+    n_controllers = len(registry())
+    k_over_n = f"/{N_FAULTS * N_SEEDS} |"
+    assert battery_md.count(k_over_n) == n_controllers * len(SPEC.fault_classes)
+    assert all(name in battery_md for name in registry())
+    sensor_md = (study_dir / "sensor.md").read_text()
+    n_sensor = len(json.loads((study_dir / "sensor.json").read_text())["results"])
+    assert sensor_md.count(k_over_n) == n_sensor * len(SPEC.sensor_faults)
+    assert "shield-only" in sensor_md and "controllable" in sensor_md
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stem", FIGURES)
+def test_every_png_is_a_real_image_of_some_size(study_dir: Path, stem: str) -> None:
+    png = study_dir / f"{stem}.png"
+    assert png.read_bytes()[:8] == PNG_SIGNATURE
+    assert png.stat().st_size > 20_000  # a blank or broken canvas compresses to a few KB
+    height, width = matplotlib.image.imread(png).shape[:2]
+    assert height >= 400 and width >= 600
+    svg = (study_dir / f"{stem}.svg").read_text()
+    assert "<svg" in svg and "</svg>" in svg
+
+
+def test_regime_rule_follows_the_gate() -> None:
+    assert [sensor_regime(s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults] == [
+        "controllable",  # bias_0.1: 0.1 deg < 0.2 deg gate
+        "shield-only",  # bias_0.2: the truth parks on the gate itself
+        "shield-only",
+        "shield-only",
+        "shield-only",  # dropout: no attitude measured
+        "shield-only",  # stuck: likewise
+    ]
+    assert sensor_regime("bias_0.3", gate_deg=0.4) == "controllable"
+    assert sensor_bias_deg("bias_0.5") == 0.5 and sensor_bias_deg("dropout") is None
+
+
+@pytest.mark.parametrize("sensor", ["bias_0.3", "bias_0.5"])
+def test_sensor_bias_leaves_the_true_attitude_off_by_the_bias(sensor: str) -> None:
+    """The teacher regulates the *measured* attitude to zero; an unobservable constant offset
+    leaves the true one parked at the bias, above the gate."""
+    episodes = draw_episodes("test", "sign", sensor, n_faults=5, n_seeds=2)
+    final_deg = rollout(make_controller("teacher"), episodes).final_error_deg
+    bias_deg = sensor_bias_deg(sensor)
+    assert np.all(np.abs(final_deg - bias_deg) < 0.05), final_deg
+    assert np.all(final_deg > SPEC.gates.settled_deg)
+
+
+@pytest.mark.slow
+def test_sensor_json_teacher_parks_at_the_bias(study_dir: Path) -> None:
+    doc = json.loads((study_dir / "sensor.json").read_text())
+    teacher = next(r for r in doc["results"] if r["controller"] == "teacher")
+    for cell in teacher["cells"]:
+        bias = sensor_bias_deg(cell["sensor"])
+        if bias is not None and bias >= 0.3:
+            assert abs(cell["final_error_deg"]["median"] - bias) < 0.05
+            assert cell["settled"]["k"] == 0
+
+
+def _result(name: str, privileged: bool, rates: dict[str, float]) -> EvalResult:
+    def cell(fault_class: str, rate: float) -> CellResult:
+        stat = GateStat(k=round(10 * rate), rate=rate, ci_low=0.0, ci_high=1.0)
+        return CellResult(
+            split="test",
+            fault_class=fault_class,
+            sensor=None,
+            n=10,
+            settled=stat,
+            operational=stat,
+            touch_once=stat,
+            final_error_deg=FinalError(median=1.0, mean=1.0),
+        )
+
+    cells = [cell(c, rates.get(c, 0.0)) for c in SPEC.fault_classes]
+    return EvalResult(
+        benchmark_version=SPEC.version, controller=name, privileged=privileged, backend="numpy", cells=cells
+    )
+
+
+def test_deployed_choice_prefers_rma_dob_then_the_best_deployable() -> None:
+    teacher = _result("teacher", True, {"sign": 1.0, "gain": 1.0})
+    weak = _result("pd", False, {})
+    strong = _result("rls_dob", False, {"sign": 0.9, "gain": 0.8})
+    rma_dob = _result("rma_dob", False, {"sign": 0.5, "gain": 0.5})
+    assert choose_deployed([weak, strong, teacher])[0] == "rls_dob"  # never the oracle
+    assert choose_deployed([weak, strong, rma_dob, teacher])[0] == "rma_dob"
+    assert choose_deployed([teacher])[0] is None
+
+
+class _Broken(Controller):
+    def __init__(self) -> None:
+        raise FileNotFoundError("weights/broken.pt is not there")
+
+    def reset(self, n, context) -> None:  # pragma: no cover
+        pass
+
+    def act(self, obs):  # pragma: no cover
+        return obs[:, :3]
+
+
+def test_a_controller_that_fails_to_load_stops_the_study(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    broken = {"broken": ControllerSpec("broken", f"{__name__}:_Broken", "cannot load")}
+    monkeypatch.setattr(study_run, "registry", lambda _benchmark=None: broken)
+    with pytest.raises(StudyError, match="failed to load: `broken` .FileNotFoundError"):
+        run_study(SPEC, 1, 1)
+    result = runner.invoke(
+        app, ["reproduce", "--out", str(tmp_path / "out"), "--n-faults", "1", "--n-seeds", "1"]
+    )
+    assert result.exit_code == 1 and not (tmp_path / "out").exists()
+    assert "broken" in result.stderr
+
+
+class _Counting(Progress):
+    def __init__(self) -> None:
+        self.steps, self.descriptions = 0, []
+
+    def advance(self, amount: float = 1.0) -> None:
+        self.steps += amount
+
+    def describe(self, text: str) -> None:
+        self.descriptions.append(text)
+
+
+@pytest.mark.slow
+def test_progress_total_is_the_work_done() -> None:
+    progress = _Counting()
+    run_study(SPEC, 1, 1, progress=progress)
+    assert progress.steps == planned_steps(SPEC)
+    assert any(d.startswith("trajectory: ") for d in progress.descriptions)
