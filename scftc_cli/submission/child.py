@@ -1,12 +1,20 @@
-"""The child process that hosts one submitted controller (``python -m scftc_cli.submission.child``).
+"""The process that hosts one submitted controller, inside the sandbox
+(``python -m scftc_cli.submission.child CONFIG``, started by ``sandbox.Sandbox``).
 
-It bounds itself, installs its guards, executes the submitted file, builds the controller and then
-answers the parent's ``reset`` and ``act`` frames (``submission/wire.py``) until told to close.
+By the time this runs, the kernel already confines it (``isolation``): its own namespaces, a
+read-only filesystem with a private ``/tmp``, a seccomp filter and rlimits. This module only
+imports the allowed packages, executes the submitted file, builds the controller and answers
+the parent's ``reset`` and ``act`` frames (``wire``) until told to close.
+
+Its audit hook is a courtesy, not a wall: it turns the first forbidden act it sees into a clear
+one-line reason ("tried to open a network socket") and ends the process before the kernel's
+refusal would surface as a bare ``PermissionError``. A submission can switch it off (it runs in
+the same interpreter); the kernel's limits hold all the same.
 """
 
 from __future__ import annotations
 
-import hashlib
+import errno
 import json
 import os
 import sys
@@ -15,7 +23,18 @@ from typing import Any
 import numpy as np
 
 from scftc_cli.protocol import Context
-from scftc_cli.submission.wire import FLOAT_DTYPES, HEADER, VIOLATION_EXIT, one_line, send
+from scftc_cli.submission.wire import (
+    FLOAT_DTYPES,
+    HEADER,
+    VIOLATION_EXIT,
+    one_line,
+    send,
+    source_encoding_problem,
+)
+
+WRITABLE = ("/tmp", "/dev/null")  # the rest of the filesystem is read-only (or absent)
+# OSError numbers the sandbox answers with: a submission that hits one met the sandbox, not a bug
+DENIED_ERRNOS = frozenset({errno.EPERM, errno.EACCES, errno.EROFS, errno.ENOSYS})
 
 
 def _child_read(fd: int, nbytes: int) -> bytes:
@@ -41,8 +60,17 @@ def _describe(exc: BaseException, source: str) -> str:
     return one_line(f"{type(exc).__name__}: {exc}", 240) + where
 
 
+def _failure(exc: BaseException, source: str, kind: str = "exception") -> dict[str, Any]:
+    """The reply for an exception: ``denied`` when the sandbox refused an operation."""
+    if isinstance(exc, MemoryError):
+        kind = "memory"
+    elif isinstance(exc, OSError) and exc.errno in DENIED_ERRNOS:
+        kind = "denied"
+    return {"ok": False, "kind": kind, "error": _describe(exc, source)}
+
+
 _WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
-_SPAWN_EVENTS = frozenset(
+_PROCESS_EVENTS = frozenset(
     {
         "os.system",
         "os.exec",
@@ -50,7 +78,6 @@ _SPAWN_EVENTS = frozenset(
         "os.spawn",
         "os.fork",
         "os.forkpty",
-        "os.startfile",
         "subprocess.Popen",
         "pty.spawn",
         "os.kill",
@@ -58,174 +85,113 @@ _SPAWN_EVENTS = frozenset(
         "signal.pthread_kill",
     }
 )
-_NET_EVENTS = frozenset({"socket.connect", "socket.bind", "socket.sendto", "socket.sendmsg"})
-# event -> (positions of path arguments, positions of dir_fd arguments)
-_FS_EVENTS: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
-    "os.chmod": ((0,), (2,)),
-    "os.chown": ((0,), (3,)),
-    "os.link": ((0, 1), (2, 3)),
-    "os.mkdir": ((0,), (2,)),
-    "os.remove": ((0,), (1,)),
-    "os.rename": ((0, 1), (2, 3)),
-    "os.rmdir": ((0,), (1,)),
-    "os.symlink": ((1,), (2,)),
-    "os.truncate": ((0,), ()),
-    "os.utime": ((0,), (3,)),
+_NET_EVENTS = frozenset(
+    {"socket.__new__", "socket.connect", "socket.bind", "socket.sendto", "socket.sendmsg"}
+)
+_FS_EVENTS = frozenset(
+    {
+        "os.chmod",
+        "os.chown",
+        "os.link",
+        "os.mkdir",
+        "os.remove",
+        "os.rename",
+        "os.rmdir",
+        "os.symlink",
+        "os.truncate",
+        "os.utime",
+    }
+)
+_MESSAGES = {
+    "os.setxattr": "tried to set extended attributes on a file",
+    "os.removexattr": "tried to remove extended attributes of a file",
+    "fcntl.flock": "tried to lock a file",
+    "fcntl.lockf": "tried to lock a file",
+    "resource.setrlimit": "tried to change its resource limits",
+    "resource.prlimit": "tried to change resource limits",
 }
 
 
-def _install_guard(workdir: str, deny_sha256: set[str], fd_out: int) -> None:
-    """The audit hook: any forbidden act reports itself to the parent and ends the child at once
-    (the submitted code gets no chance to catch it)."""
-    root = os.path.realpath(workdir)
-    own_pid = str(os.getpid())
-
-    def violation(message: str) -> None:
-        try:
-            send(fd_out, {"ok": False, "kind": "violation", "error": one_line(message)})
-        finally:
-            os._exit(VIOLATION_EXIT)
-
-    def inside(path: object) -> bool:
+def _writable(path: object) -> bool:
+    try:
         real = os.path.realpath(os.fsdecode(path))  # type: ignore[arg-type]
-        return real == root or real.startswith(root + os.sep)
+    except (TypeError, ValueError):
+        return False
+    return any(real == w or real.startswith(w + "/") for w in WRITABLE)
 
-    def check_read(path: object) -> None:
-        real = os.path.realpath(os.fsdecode(path))  # type: ignore[arg-type]
-        if hashlib.sha256(real.encode()).hexdigest() in deny_sha256:
-            violation(f"tried to read {real}, the private-draw key")
-        parts = real.split(os.sep)
-        if len(parts) > 2 and parts[1] == "proc" and parts[2].isdigit() and parts[2] != own_pid:
-            violation(f"tried to read {real} (another process)")
+
+def _reason(event: str, args: tuple[Any, ...]) -> str | None:
+    """Why ``event`` is forbidden, or ``None`` when it is fine."""
+    if event == "open":
+        path, mode, flags = (tuple(args) + (None, None, 0))[:3]
+        writes = (mode is None and bool((flags or 0) & _WRITE_FLAGS)) or (
+            isinstance(mode, str) and any(c in mode for c in "wax+")
+        )
+        if writes and path is not None and not isinstance(path, int) and not _writable(path):
+            return f"tried to open {one_line(os.fsdecode(path), 120)} for writing (only /tmp is writable)"
+        return None
+    if event in _FS_EVENTS:
+        paths = [a for a in args[:2] if isinstance(a, str | bytes | os.PathLike)]
+        if any(not _writable(p) for p in paths):
+            return f"{event} outside /tmp, the only writable folder"
+        return None
+    if event in _PROCESS_EVENTS:
+        own = event == "signal.pthread_kill" or (event.startswith("os.kill") and args[:1] == (os.getpid(),))
+        if own:  # signalling itself or its own threads
+            return None
+        return f"tried to start or signal a process ({event})"
+    if event.startswith("ctypes."):
+        return f"tried to load native code ({event})"
+    if event in _NET_EVENTS:
+        return "tried to open a network socket" if event == "socket.__new__" else "tried to use the network"
+    return _MESSAGES.get(event)
+
+
+def _install_hook(fd_out: int) -> None:
+    """Report the first forbidden act and end the process (the submission cannot catch it)."""
 
     def hook(event: str, args: tuple[Any, ...]) -> None:
-        if event == "open":
-            path, mode, flags = (tuple(args) + (None, None, 0))[:3]
-            writes = (mode is None and bool((flags or 0) & _WRITE_FLAGS)) or (
-                isinstance(mode, str) and any(c in mode for c in "wax+")
-            )
-            if isinstance(path, int):
-                if writes and path not in (1, 2):
-                    violation(f"tried to open file descriptor {path} for writing")
-                return
-            if path is None:
-                return
-            if writes and (mode is None or not inside(path)):
-                violation(f"tried to open {os.fsdecode(path)} for writing")
-            check_read(path)
-        elif event in _FS_EVENTS:
-            paths, dir_fds = _FS_EVENTS[event]
-            for i in dir_fds:
-                if i < len(args) and args[i] not in (None, -1):
-                    violation(f"{event} relative to a directory descriptor")
-            for i in paths:
-                if i < len(args) and (isinstance(args[i], int) or not inside(args[i])):
-                    violation(f"{event} on {args[i]!r}, outside the sandbox folder")
-        elif event in _SPAWN_EVENTS:
-            if event.startswith(("os.kill", "signal.")) and args and str(args[0]) == own_pid:
-                return
-            violation(f"tried to start or signal a process ({event})")
-        elif event.startswith("ctypes."):
-            violation(f"tried to load native code ({event})")
-        elif event in _NET_EVENTS:
-            violation(f"tried to use the network ({event})")
-        elif event == "resource.setrlimit":
-            violation("tried to change its resource limits")
+        reason = _reason(event, args)
+        if reason is not None:
+            try:
+                send(fd_out, {"ok": False, "kind": "violation", "error": reason})
+            finally:
+                os._exit(VIOLATION_EXIT)
 
     sys.addaudithook(hook)
 
 
-# Landlock (Linux >= 5.13): kernel-enforced, inherited by any forked process, cannot be lifted.
-_LL_EXECUTE, _LL_WRITE_FILE = 1 << 0, 1 << 1
-_LL_WRITES = sum(1 << i for i in (1, 4, 5, 6, 7, 8, 9, 10, 11, 12))  # write, remove, make-anything
-_LL_REFER, _LL_TRUNCATE = 1 << 13, 1 << 14  # ABI 2, ABI 3
-_LL_NET_TCP = (1 << 0) | (1 << 1)  # bind, connect (ABI 4)
-_LL_SCOPE = (1 << 0) | (1 << 1)  # abstract unix sockets, signals to processes outside (ABI 6)
-_SYS_CREATE_RULESET, _SYS_ADD_RULE, _SYS_RESTRICT_SELF = 444, 445, 446  # same on every architecture
-
-
-def _landlock(workdir: str) -> int:
-    """Defence in depth under the audit hook: let the kernel refuse every write outside
-    ``workdir``, every ``execve``, TCP, and signals to outside processes. Returns the Landlock ABI
-    version applied, 0 where the kernel has none (the audit hook still applies)."""
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-    except OSError:
-        return 0
-    syscall, c_long = libc.syscall, ctypes.c_long
-    syscall.restype = c_long
-    abi = syscall(c_long(_SYS_CREATE_RULESET), None, c_long(0), c_long(1))  # 1: ask the ABI version
-    if abi < 1:
-        return 0
-    fs = _LL_EXECUTE | _LL_WRITES | (_LL_REFER if abi >= 2 else 0) | (_LL_TRUNCATE if abi >= 3 else 0)
-    fields = [fs] + ([_LL_NET_TCP] if abi >= 4 else []) + ([_LL_SCOPE] if abi >= 6 else [])
-    attr = (ctypes.c_uint64 * len(fields))(*fields)
-    ruleset = syscall(c_long(_SYS_CREATE_RULESET), ctypes.byref(attr), c_long(ctypes.sizeof(attr)), c_long(0))
-    if ruleset < 0:
-        return 0
-
-    class PathBeneath(ctypes.Structure):
-        _pack_ = 1
-        _fields_ = (("allowed_access", ctypes.c_uint64), ("parent_fd", ctypes.c_int32))
-
-    dir_fd = os.open(workdir, os.O_PATH | os.O_CLOEXEC)
-    try:
-        rule = PathBeneath(fs & ~_LL_EXECUTE, dir_fd)
-        if syscall(c_long(_SYS_ADD_RULE), c_long(ruleset), c_long(1), ctypes.byref(rule), c_long(0)) != 0:
-            return 0
-        if libc.prctl(38, c_long(1), c_long(0), c_long(0), c_long(0)) != 0:  # PR_SET_NO_NEW_PRIVS
-            return 0
-        if syscall(c_long(_SYS_RESTRICT_SELF), c_long(ruleset), c_long(0)) != 0:
-            return 0
-    finally:
-        os.close(dir_fd)
-        os.close(ruleset)
-    return int(abi)
-
-
-def _set_limits(cpu_s: int, memory_mb: int, file_mb: int) -> None:
-    import resource
-
-    resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
-    resource.setrlimit(resource.RLIMIT_AS, (memory_mb << 20, memory_mb << 20))
-    resource.setrlimit(resource.RLIMIT_FSIZE, (file_mb << 20, file_mb << 20))
-
-
-def _child_main(config: dict[str, Any]) -> None:  # pragma: no cover - runs in the child process
+def _child_main(config: dict[str, Any]) -> None:  # pragma: no cover - runs in the sandbox
     import importlib
     import types
 
     fd_in, fd_out = int(config["fd_in"]), int(config["fd_out"])
     source = str(config["source"])
-    _set_limits(int(config["cpu_s"]), int(config["memory_mb"]), int(config["file_mb"]))
     os.dup2(2, 1)  # print() in the submission goes to the log, never into the reply pipe
     sys.stdout = sys.stderr
-    os.chdir(config["workdir"])
     for name in config["preload"]:
         try:
             importlib.import_module(name)
         except ImportError:
             pass  # `from pkg import name` of a non-module; the submission's own import reports errors
         except BaseException as exc:
-            send(fd_out, {"ok": False, "kind": "import", "error": _describe(exc, source)})
+            send(fd_out, _failure(exc, source, "import"))
             return
-    landlock_abi = _landlock(config["workdir"])
-    _install_guard(config["workdir"], set(config["deny_sha256"]), fd_out)
+    _install_hook(fd_out)
 
     module = types.ModuleType("submission")
     module.__file__ = source
     sys.modules["submission"] = module
     try:
-        with open(source, encoding="utf-8") as f:
-            code = compile(f.read(), source, "exec")
+        with open(source, "rb") as f:
+            data = f.read()
+        problem = source_encoding_problem(data)
+        if problem is not None:
+            raise SyntaxError(problem)
+        code = compile(data, source, "exec")  # the bytes the parent hashed and parsed, decoded alike
         exec(code, module.__dict__)
-    except MemoryError as exc:
-        send(fd_out, {"ok": False, "kind": "memory", "error": _describe(exc, source)})
-        return
     except BaseException as exc:
-        send(fd_out, {"ok": False, "kind": "import", "error": _describe(exc, source)})
+        send(fd_out, _failure(exc, source, "import"))
         return
     cls = getattr(module, str(config["entry"]), None)
     if not isinstance(cls, type) or not callable(getattr(cls, "act", None)):
@@ -234,16 +200,17 @@ def _child_main(config: dict[str, Any]) -> None:  # pragma: no cover - runs in t
         return
     claimed = getattr(cls, "privileged", False)
     if claimed is not False:
-        error = f"class `{config['entry']}` sets privileged = {claimed!r}"
+        error = f"class `{config['entry']}` sets privileged = {one_line(repr(claimed), 40)}"
         send(fd_out, {"ok": False, "kind": "privileged", "error": error})
         return
     try:
         controller = cls()
     except BaseException as exc:
-        error = f"{config['entry']}() failed: {_describe(exc, source)}"
-        send(fd_out, {"ok": False, "kind": "load", "error": error})
+        failure = _failure(exc, source, "load")
+        failure["error"] = f"{config['entry']}() failed: {failure['error']}"
+        send(fd_out, failure)
         return
-    send(fd_out, {"ok": True, "landlock_abi": landlock_abi})
+    send(fd_out, {"ok": True})
     _serve(controller, fd_in, fd_out, source)
 
 
@@ -265,11 +232,8 @@ def _serve(controller: Any, fd_in: int, fd_out: int, source: str) -> None:  # pr
                 send(fd_out, {"ok": True})
                 continue
             out = controller.act(obs)
-        except MemoryError as exc:
-            send(fd_out, {"ok": False, "kind": "memory", "error": _describe(exc, source)})
-            return
         except BaseException as exc:
-            send(fd_out, {"ok": False, "kind": "exception", "error": _describe(exc, source)})
+            send(fd_out, _failure(exc, source))
             return
         if not isinstance(out, np.ndarray):
             send(fd_out, {"ok": True, "type": type(out).__name__})
@@ -281,7 +245,7 @@ def _serve(controller: Any, fd_in: int, fd_out: int, source: str) -> None:  # pr
         send(fd_out, header, payload)
 
 
-if __name__ == "__main__":  # pragma: no cover - the child process
+if __name__ == "__main__":  # pragma: no cover - the sandboxed process
     _child_main(json.loads(sys.argv[1]))
     sys.stdout.flush()
     os._exit(0)

@@ -8,18 +8,29 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SandboxLimits:
-    """Bounds on one submission's process.
+    """Bounds on one submission's sandbox.
+
+    The wall-time bounds are enforced by the parent; the rest are kernel limits set on the
+    sandbox before it starts (soft = hard, so the submission cannot raise them).
 
     Attributes:
         step_timeout_s: wall time allowed for one ``act`` (or ``reset``) round trip.
-        start_timeout_s: wall time allowed to start the process and import the submission.
-        cpu_s: total CPU seconds of the process (``RLIMIT_CPU``).
+        start_timeout_s: wall time allowed to start the sandbox and import the submission.
+        total_wall_s: wall time allowed for everything the parent asks of one submission (start,
+            every reset and step of every cell and draw), from the sandbox's start; a controller
+            that is merely slow is stopped here with a clear reason instead of after hours.
+        cpu_s: total CPU seconds of the process (``RLIMIT_CPU``; killed one second later).
         memory_mb: address space of the process (``RLIMIT_AS``), MiB.
         file_mb: largest file it may write (``RLIMIT_FSIZE``), MiB.
+        tmp_mb: size of its private ``/tmp``, the only writable place, MiB.
+        open_files: open file descriptors (``RLIMIT_NOFILE``).
     """
 
     step_timeout_s: float = 10.0
     start_timeout_s: float = 120.0
+    total_wall_s: float = 1800.0
     cpu_s: int = 1800
     memory_mb: int = 4096
     file_mb: int = 64
+    tmp_mb: int = 64
+    open_files: int = 256

@@ -2,7 +2,13 @@
 
 The parent process never imports a submitted file. It reads the source once (the bytes that are
 hashed are the bytes that run), parses it with ``ast`` and reads the manifest with
-``ast.literal_eval``; only the sandboxed child (``scftc_cli.sandbox``) executes it.
+``ast.literal_eval``; only the sandboxed child (``submission/child.py``) executes it, compiling
+the same bytes (so a BOM or a coding line reads alike on both sides; any encoding but UTF-8 or
+ASCII is refused).
+
+Everything in the manifest ends up on the board and on terminals, so every string is bounded in
+length and free of control characters and escape sequences; ``terminal_safe`` strips them from
+anything else a submission controls before it is echoed.
 """
 
 from __future__ import annotations
@@ -16,11 +22,20 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from scftc_cli.errors import SubmissionRejected
+from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS
+from scftc_cli.submission.wire import control_characters, source_encoding_problem
+from scftc_cli.submission.wire import terminal_safe as terminal_safe  # the command line's import
 
 GUIDE = "docs/submitting.md"
 NAME_PATTERN = r"^[a-z][a-z0-9_-]{1,39}$"
 URL_PATTERN = r"^https?://\S+$"
 MAX_SOURCE_BYTES = 1_000_000
+MAX_AUTHORS = 20
+MAX_AUTHOR_CHARS = 100
+MAX_DESCRIPTION_CHARS = 500
+MAX_LICENSE_CHARS = 64
+MAX_URL_CHARS = 300
+MAX_VERSION_CHARS = 32
 
 
 class SubmissionManifest(BaseModel):
@@ -33,17 +48,36 @@ class SubmissionManifest(BaseModel):
         description="Unique name on the board: lowercase slug, 2-40 chars of a-z, 0-9, '_' or '-'.",
     )
     version: str = Field(
-        pattern=r"^[0-9A-Za-z][0-9A-Za-z.+_-]{0,31}$", description="Version of the submission, e.g. 1.0.0."
+        max_length=MAX_VERSION_CHARS,
+        pattern=r"^[0-9A-Za-z][0-9A-Za-z.+_-]*$",
+        description="Version of the submission, e.g. 1.0.0.",
     )
-    authors: list[str] = Field(min_length=1, description="Who wrote it, one string per author.")
-    description: str = Field(min_length=1, max_length=500, description="One or two sentences: what it is.")
+    authors: list[str] = Field(
+        min_length=1, max_length=MAX_AUTHORS, description="Who wrote it, one string per author."
+    )
+    description: str = Field(
+        min_length=1,
+        max_length=MAX_DESCRIPTION_CHARS,
+        description="One or two sentences: what it is (plain text; newlines allowed).",
+    )
     entry: str = Field(
         pattern=r"^[A-Za-z_][A-Za-z0-9_]*$",
         description="Name of the controller class defined at the top level of the file.",
     )
-    license: str = Field(min_length=1, max_length=64, description="License of the code (SPDX id, e.g. MIT).")
-    paper_url: str | None = Field(default=None, pattern=URL_PATTERN, description="Optional paper link.")
-    code_url: str | None = Field(default=None, pattern=URL_PATTERN, description="Optional code link.")
+    license: str = Field(
+        min_length=1, max_length=MAX_LICENSE_CHARS, description="License of the code (SPDX id, e.g. MIT)."
+    )
+    paper_url: str | None = Field(
+        default=None, max_length=MAX_URL_CHARS, pattern=URL_PATTERN, description="Optional paper link."
+    )
+    code_url: str | None = Field(
+        default=None, max_length=MAX_URL_CHARS, pattern=URL_PATTERN, description="Optional code link."
+    )
+    benchmark: str = Field(
+        default=DEFAULT_BENCHMARK,
+        max_length=MAX_VERSION_CHARS,
+        description="The benchmark version the controller flies (its observation and action shapes).",
+    )
     privileged: bool = Field(
         default=False,
         description="Always false: submissions never see the true fault. Claiming true is rejected.",
@@ -54,7 +88,28 @@ class SubmissionManifest(BaseModel):
     def _authors_named(cls, authors: list[str]) -> list[str]:
         if any(not a.strip() for a in authors):
             raise ValueError("every author must be a non-empty string")
+        if any(len(a) > MAX_AUTHOR_CHARS for a in authors):
+            raise ValueError(f"every author must be at most {MAX_AUTHOR_CHARS} characters")
+        for author in authors:
+            _plain(author)
         return authors
+
+    @field_validator("description")
+    @classmethod
+    def _description_plain(cls, text: str) -> str:
+        return _plain(text, allow_newline=True)
+
+    @field_validator("license", "paper_url", "code_url")
+    @classmethod
+    def _line_plain(cls, text: str | None) -> str | None:
+        return None if text is None else _plain(text)
+
+    @field_validator("benchmark")
+    @classmethod
+    def _known_benchmark(cls, version: str) -> str:
+        if version not in SPECS:
+            raise ValueError(f"unknown benchmark {version!r}; use one of {', '.join(SPECS)}")
+        return version
 
     @field_validator("privileged")
     @classmethod
@@ -65,6 +120,17 @@ class SubmissionManifest(BaseModel):
                 "remove `privileged`"
             )
         return privileged
+
+
+def _plain(text: str, allow_newline: bool = False) -> str:
+    """``text`` unchanged, or a ``ValueError`` naming its control characters (an ANSI or OSC
+    escape in a manifest would repaint the terminal of whoever lists the board)."""
+    found = control_characters(text, allow_newline)
+    if found:
+        allowed = " (a plain newline is allowed)" if allow_newline else ""
+        listed = ", ".join(found)
+        raise ValueError(f"contains control or invisible characters ({listed}); remove them{allowed}")
+    return text
 
 
 @dataclass(frozen=True)
@@ -87,7 +153,7 @@ class Submission:
 
 
 def _reject(path: Path, reason: str) -> SubmissionRejected:
-    return SubmissionRejected(f"{path.name}: {reason}")
+    return SubmissionRejected(terminal_safe(f"{path.name}: {reason}"))
 
 
 def _manifest_node(tree: ast.Module) -> ast.expr | None:
@@ -131,11 +197,15 @@ def format_validation_error(err: ValidationError) -> str:
         where = ".".join(str(p) for p in e["loc"]) or "manifest"
         msg = e["msg"].removeprefix("Value error, ")
         parts.append(f"{where}: {msg}")
-    return "; ".join(parts)
+    return terminal_safe("; ".join(parts))
 
 
 def parse_manifest(source: bytes, path: Path) -> tuple[SubmissionManifest, ast.Module]:
     """The validated manifest and syntax tree of ``source``; rejects with the fix in one line."""
+    problem = source_encoding_problem(source)
+    if problem is not None:
+        fix = "save the file as UTF-8 (a BOM is fine) without any other coding line"
+        raise _reject(path, f"{problem}; {fix}")
     try:
         tree = ast.parse(source, filename=path.name)
     except SyntaxError as err:

@@ -1,64 +1,108 @@
-"""Run a submitted controller in a separate, bounded process that sees only observations.
+"""Run a submitted controller in an isolated, bounded process that sees only observations.
 
-The parent (``Sandbox``, ``SandboxedController``) spawns ``python -m scftc_cli.sandbox`` with a
-minimal environment (no secrets, no leaderboard path), its working directory in a fresh temporary
-folder, and two pipes. Per step it sends ``n`` and the ``(n, 6)`` observations and reads back a
-small JSON header plus the raw command bytes. The parent never unpickles anything from the child
-and validates every reply (type, shape ``(n, 3)``, float dtype, finite values).
+The parent (``Sandbox``, ``SandboxedController``) starts ``python -m scftc_cli.submission.child``
+under bubblewrap with a seccomp filter and rlimits (``isolation``): the child has its own
+namespaces, a read-only view of the interpreter, system libraries, numpy, scipy and
+``scftc_cli``, a private size-limited ``/tmp``, no network, no other process in sight, and an
+environment built from scratch. The submitted bytes reach it through a memfd, its output comes
+back through a pipe into a bounded buffer, and nothing is written to disk: a ``kill -9`` of the
+parent at any moment leaves no folder behind, and bubblewrap's parent-death signal takes the
+sandbox down with it.
 
-The child bounds itself before running any submitted code: CPU time (``RLIMIT_CPU``), address
-space (``RLIMIT_AS``), file size (``RLIMIT_FSIZE``); it installs an audit hook (``sys.addaudithook``,
-which cannot be removed) that kills the child on an attempt to write outside its temporary folder
-(the leaderboard included), start a process, use ``ctypes``, the network, or read the private-draw
-secret or another process's ``/proc`` entries. The parent bounds the wall time of every step.
+Per step the parent sends ``n`` and the ``(n, obs_dim)`` observations and reads back a small JSON
+header plus the raw command bytes. It never unpickles anything from the child, validates every
+reply (type, shape ``(n, action_dim)``, float dtype, finite values) and bounds the wall time of
+every step and of the whole submission (``SandboxLimits.total_wall_s``, or a shared
+``deadline``).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import select
-import shutil
 import signal
 import subprocess
-import sys
-import tempfile
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, BinaryIO
+from dataclasses import KW_ONLY, dataclass, field
+from typing import Any
 
 import numpy as np
 
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.spec import get_spec
+from scftc_cli.submission.isolation import (
+    bwrap_argv,
+    limit_child,
+    python_command,
+    sandbox_filename,
+    sandbox_uid,
+    sandbox_unavailable,
+    seccomp_program,
+)
 from scftc_cli.submission.limits import SandboxLimits
-from scftc_cli.submission.wire import FLOAT_DTYPES, HEADER, MAX_HEADER_BYTES, VIOLATION_EXIT, frame, one_line
+from scftc_cli.submission.wire import (
+    FLOAT_DTYPES,
+    HEADER,
+    MAX_HEADER_BYTES,
+    VIOLATION_EXIT,
+    frame,
+    one_line,
+    source_encoding_problem,
+)
 
-# Packages whose modules the child imports before its guard goes up, when the submission imports
-# them: they may load shared libraries through ctypes, which the guard forbids afterwards.
-PRELOADABLE = frozenset({"numpy", "scipy", "torch", "scftc_cli"})
+# Packages whose modules the child imports before its audit hook goes up, when the submission
+# imports them: they may load shared libraries through ctypes, which the hook reports afterwards.
+PRELOADABLE = frozenset({"numpy", "scipy", "scftc_cli"})
 GUIDE = "docs/submitting.md"
+OUTPUT_BYTES = 65_536  # the tail of the child's stdout/stderr kept for messages
+_ACCESS = (
+    "a controller may only compute commands from observations: remove the file, process or network access"
+)
 
 
-def _path_sha256(path: str | os.PathLike[str]) -> str:
-    return hashlib.sha256(os.path.realpath(os.fspath(path)).encode()).hexdigest()
+def _memfd(name: str, data: bytes) -> int:
+    fd = os.memfd_create(name, 0)
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+    os.lseek(fd, 0, os.SEEK_SET)
+    return fd
+
+
+def _close(*fds: int | None) -> None:
+    for fd in fds:
+        if fd is not None:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 # ----------------------------------------------------------------------------------------- parent
 @dataclass
 class Sandbox:
-    """A running child process hosting one submitted controller.
+    """A running, isolated child process hosting one submitted controller.
 
     Args:
         source: the exact bytes of the submitted file (the bytes that were hashed).
         filename: its file name (shown in tracebacks and messages).
         entry: the controller class to instantiate.
-        preload: top-level modules the file imports; those in ``PRELOADABLE`` load before the guard.
-        limits: the bounds above.
-        deny_read: files the child may not even read (the private-draw key file).
+        preload: top-level modules the file imports; those in ``PRELOADABLE`` load before the hook.
+        limits: the bounds of ``SandboxLimits``.
+        deadline: ``time.monotonic()`` by which everything asked of this submission must be done;
+            by default ``limits.total_wall_s`` from the start. To share one budget between several
+            sandboxes of a submission (a determinism check, then the scoring), pass each the same
+            ``time.monotonic() + limits.total_wall_s``.
+
+    Raises:
+        SubmissionRejected: the sandbox cannot run here (``sandbox_unavailable``'s reason).
+
+    Leaving the ``with`` block by any route (an exception, ``KeyboardInterrupt``, ``SystemExit``)
+    kills the sandbox and waits for it; if this process dies instead (SIGTERM, ``kill -9``), the
+    kernel's parent-death signal takes the sandbox with it. That signal follows the *thread* that
+    started the sandbox: start and use a sandbox from a thread that outlives it.
     """
 
     source: bytes
@@ -66,15 +110,24 @@ class Sandbox:
     entry: str
     preload: tuple[str, ...] = ()
     limits: SandboxLimits = field(default_factory=SandboxLimits)
-    deny_read: tuple[Path, ...] = ()
+    _: KW_ONLY
+    deadline: float | None = None
 
     def __post_init__(self) -> None:
+        reason = sandbox_unavailable()
+        if reason is not None:
+            raise SubmissionRejected(reason)
         self._proc: subprocess.Popen[bytes] | None = None
-        self._tmp: Path | None = None
-        self._fds: list[int] = []
-        self._stderr: BinaryIO | None = None
+        self._pidfds: list[int] = []  # the sandboxed process, then bubblewrap
+        self._to_child: int | None = None
+        self._from_child: int | None = None
+        self._err: int | None = None
+        self._inbox = bytearray()
+        self._output = bytearray()
+        self._cpu_s = 0.0
+        self._until_budget = float("inf")
+        self.name = one_line(self.filename, 120)
         self.phase = "starting"
-        self.landlock_abi = 0  # Landlock ABI the child applied (0: audit hook only)
         self.action_dim = 3
 
     # -- lifecycle -------------------------------------------------------------------------------
@@ -82,7 +135,7 @@ class Sandbox:
         try:
             self.start()
         except BaseException:
-            self.close()  # a submission that fails to load leaves no process or folder behind
+            self.close()  # a submission that fails to load leaves no process behind
             raise
         return self
 
@@ -90,81 +143,98 @@ class Sandbox:
         self.close()
 
     def start(self) -> None:
-        """Spawn the child and wait until it has imported the file and built the controller."""
-        self._tmp = Path(tempfile.mkdtemp(prefix="scftc-sandbox-"))
-        workdir = self._tmp / "work"
-        workdir.mkdir()
-        script = workdir / self.filename
-        script.write_bytes(self.source)
-        self._stderr = open(self._tmp / "stderr.log", "w+b")
+        """Start the sandbox and wait until it has imported the file and built the controller."""
+        problem = source_encoding_problem(self.source)
+        if problem is not None:
+            raise self._reject(f"{problem}; save the file as UTF-8 without a coding line")
+        started = time.monotonic()
+        budget_end = started + self.limits.total_wall_s
+        self._until_budget = self.deadline if self.deadline is not None else budget_end
+        inside = sandbox_filename(self.filename)
+        source_fd = _memfd("scftc-submission", self.source)
+        seccomp_fd = _memfd("scftc-seccomp", seccomp_program())
         p2c_r, self._to_child = os.pipe()
         self._from_child, c2p_w = os.pipe()
-        self._fds = [self._to_child, self._from_child]
+        self._err, err_w = os.pipe()
+        info_r, info_w = os.pipe()
+        for fd in (self._to_child, self._from_child, self._err):
+            os.set_blocking(fd, False)
         config = {
-            "source": str(script),
+            "source": inside,
             "entry": self.entry,
             "fd_in": p2c_r,
             "fd_out": c2p_w,
-            "workdir": str(workdir),
-            "cpu_s": int(self.limits.cpu_s),
-            "memory_mb": int(self.limits.memory_mb),
-            "file_mb": int(self.limits.file_mb),
             "preload": sorted(m for m in self.preload if m.split(".")[0] in PRELOADABLE),
-            "deny_sha256": [_path_sha256(p) for p in self.deny_read],
         }
-        package_root = str(Path(__file__).resolve().parent.parent.parent)
-        env = {
-            "PATH": os.defpath,
-            "HOME": str(workdir),
-            "TMPDIR": str(workdir),
-            "PYTHONPATH": package_root,
-            "PYTHONHASHSEED": "0",
-            "LC_ALL": "C.UTF-8",
-            **{v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
-        }
+        argv = bwrap_argv(
+            source_fd=source_fd,
+            source_path=inside,
+            seccomp_fd=seccomp_fd,
+            info_fd=info_w,
+            tmp_mb=self.limits.tmp_mb,
+            command=python_command(config),
+        )
         try:
             self._proc = subprocess.Popen(
-                [sys.executable, "-B", "-s", "-P", "-m", "scftc_cli.submission.child", json.dumps(config)],
+                argv,
                 stdin=subprocess.DEVNULL,
-                stdout=self._stderr,
-                stderr=self._stderr,
-                cwd=workdir,
-                env=env,
-                pass_fds=(p2c_r, c2p_w),
+                stdout=err_w,
+                stderr=err_w,
+                env={"PATH": os.defpath},  # bubblewrap itself gets nothing of ours either
+                pass_fds=(p2c_r, c2p_w, source_fd, seccomp_fd, info_w),
                 start_new_session=True,
+                preexec_fn=limit_child(self.limits, sandbox_uid()),
             )
+        except BaseException:
+            _close(info_r)
+            raise
         finally:
-            os.close(p2c_r)
-            os.close(c2p_w)
-        ready = self._recv_ok(time.monotonic() + self.limits.start_timeout_s, "importing the file")
-        abi = ready.get("landlock_abi")
-        self.landlock_abi = abi if isinstance(abi, int) else 0
+            _close(p2c_r, c2p_w, err_w, info_w, source_fd, seccomp_fd)
+        try:
+            self._pidfds.append(os.pidfd_open(self._proc.pid))
+            child_pid = self._read_info(info_r, self._until(self.limits.start_timeout_s))
+        finally:
+            _close(info_r)
+        if child_pid is not None:
+            try:
+                self._pidfds.insert(0, os.pidfd_open(child_pid))
+            except OSError:
+                pass  # already gone: the reply below says why
+        self._recv_ok(self._until(self.limits.start_timeout_s), "importing the file")
         self.phase = "ready"
 
+    def _read_info(self, fd: int, deadline: float) -> int | None:
+        """The sandboxed process's host PID from bubblewrap's ``--info-fd`` (``None``: it failed)."""
+        data = b""
+        while True:
+            if not self._wait(fd, select.POLLIN, deadline):
+                return None
+            chunk = os.read(fd, 4096)
+            data += chunk
+            try:
+                pid = json.loads(data).get("child-pid")
+                return pid if isinstance(pid, int) else None
+            except ValueError:
+                if not chunk:
+                    return None
+
     def close(self) -> None:
-        """Stop the child (politely, then by force) and remove its temporary folder."""
-        proc = self._proc
-        if proc is not None:
-            if proc.poll() is None:
+        """Stop the sandbox (politely, then by force) and wait until every process in it is gone."""
+        try:
+            proc = self._proc
+            if proc is not None and proc.returncode is None and self._to_child is not None:
                 try:
                     self._write(frame({"op": "close"}), time.monotonic() + 1.0)
-                    proc.wait(timeout=2.0)
-                except (OSError, SubmissionRejected, subprocess.TimeoutExpired):
+                    self._reap(2.0)
+                except (OSError, SubmissionRejected):
                     pass
+        finally:
             self._kill()
+            self._pump()
+            _close(self._to_child, self._from_child, self._err, *self._pidfds)
+            self._to_child = self._from_child = self._err = None
+            self._pidfds = []
             self._proc = None
-        for fd in self._fds:
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        self._fds = []
-        if self._stderr is not None:
-            self._stderr.close()
-            self._stderr = None
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None
 
     # -- protocol --------------------------------------------------------------------------------
     def reset(self, context: Context, where: str) -> None:
@@ -172,14 +242,15 @@ class Sandbox:
         self.phase = f"reset() for {where}"
         self.action_dim = get_spec(context.benchmark_version).action_dim
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
-        self._write(frame(request), time.monotonic() + self.limits.step_timeout_s)
-        self._recv_ok(time.monotonic() + self.limits.step_timeout_s, self.phase)
+        deadline = self._until(self.limits.step_timeout_s)
+        self._write(frame(request), deadline)
+        self._recv_ok(deadline, self.phase)
 
     def act(self, obs: np.ndarray, where: str) -> np.ndarray:
         """Send ``obs`` ``(n, obs_dim)``; return the validated commands ``(n, action_dim)`` float64."""
         self.phase = f"act() on {where}"
         n, width, m = obs.shape[0], obs.shape[1], self.action_dim
-        deadline = time.monotonic() + self.limits.step_timeout_s
+        deadline = self._until(self.limits.step_timeout_s)
         payload = np.ascontiguousarray(obs, dtype="<f8").tobytes()
         self._write(frame({"op": "act", "n": int(n), "width": int(width)}) + payload, deadline)
         header = self._recv_ok(deadline, self.phase)
@@ -188,7 +259,8 @@ class Sandbox:
             raise self._reject(f"act() must return a numpy array, got {one_line(str(kind), 40)}")
         shape = header.get("shape")
         if not isinstance(shape, list) or shape != [n, m]:
-            raise self._reject(f"act() must return shape ({n}, {m}), got {tuple(shape or ())}")
+            got = one_line(str(tuple(shape or ())), 40)
+            raise self._reject(f"act() must return shape ({n}, {m}), got {got}")
         dtype = header.get("dtype")
         if dtype not in FLOAT_DTYPES:
             raise self._reject(f"act() must return a float array, got dtype {one_line(str(dtype), 20)}")
@@ -199,33 +271,85 @@ class Sandbox:
             raise self._reject("act() returned NaN or inf commands; return finite values in [-1, 1]")
         return commands
 
+    def output(self) -> str:
+        """The last ``OUTPUT_BYTES`` the child printed (stdout and stderr), for diagnostics."""
+        self._pump()
+        return self._output.decode(errors="replace")
+
+    # -- plumbing --------------------------------------------------------------------------------
+    def _until(self, step_s: float) -> float:
+        """The deadline of one round trip: ``step_s`` from now, never past the total budget."""
+        return min(time.monotonic() + step_s, self._until_budget)
+
     def _reject(self, reason: str) -> SubmissionRejected:
-        return SubmissionRejected(f"{self.filename}: {reason} ({self.phase}); fix it (see {GUIDE})")
+        return SubmissionRejected(f"{self.name}: {reason} ({self.phase}); fix it (see {GUIDE})")
+
+    def _pump(self) -> None:
+        """Move whatever the child printed into the bounded output buffer (never blocks)."""
+        while self._err is not None:
+            try:
+                chunk = os.read(self._err, 65_536)
+            except BlockingIOError:
+                return
+            except OSError:
+                chunk = b""
+            if not chunk:
+                _close(self._err)
+                self._err = None
+                return
+            self._output += chunk
+            del self._output[:-OUTPUT_BYTES]
+
+    def _wait(self, fd: int, events: int, deadline: float) -> bool:
+        """Wait until ``fd`` is ready for ``events``, draining the child's output meanwhile.
+        ``False`` when ``deadline`` passes first."""
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            poller = select.poll()
+            poller.register(fd, events)
+            if self._err is not None:
+                poller.register(self._err, select.POLLIN)
+            ready = dict(poller.poll(max(1, int(remaining * 1000) + 1)))
+            if self._err is not None and self._err in ready:
+                self._pump()
+            if fd in ready:
+                return True
 
     def _write(self, data: bytes, deadline: float) -> None:
+        if time.monotonic() >= self._until_budget:
+            raise self._timeout()
+        fd = self._to_child
+        if fd is None:
+            raise self._gone()
         view = memoryview(data)
         while view:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0 or not select.select([], [self._to_child], [], remaining)[1]:
-                raise self._timeout()
             try:
-                written = os.write(self._to_child, view[:65536])
+                view = view[os.write(fd, view) :]
+            except BlockingIOError:
+                if not self._wait(fd, select.POLLOUT, deadline):
+                    raise self._timeout() from None
             except BrokenPipeError:
                 raise self._gone() from None
-            view = view[written:]
 
     def _read_exact(self, nbytes: int, deadline: float) -> bytes:
-        chunks, got = [], 0
-        while got < nbytes:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0 or not select.select([self._from_child], [], [], remaining)[0]:
-                raise self._timeout()
-            chunk = os.read(self._from_child, min(nbytes - got, 1 << 20))
+        fd = self._from_child
+        if fd is None:
+            raise self._gone()
+        while len(self._inbox) < nbytes:
+            try:
+                chunk = os.read(fd, max(nbytes - len(self._inbox), 65_536))
+            except BlockingIOError:
+                if not self._wait(fd, select.POLLIN, deadline):
+                    raise self._timeout() from None
+                continue
             if not chunk:
                 raise self._gone()
-            chunks.append(chunk)
-            got += len(chunk)
-        return b"".join(chunks)
+            self._inbox += chunk
+        out = bytes(self._inbox[:nbytes])
+        del self._inbox[:nbytes]
+        return out
 
     def _recv(self, deadline: float) -> dict[str, Any]:
         (size,) = HEADER.unpack(self._read_exact(HEADER.size, deadline))
@@ -244,18 +368,22 @@ class Sandbox:
         if header.get("ok") is True:
             return header
         kind, error = str(header.get("kind")), one_line(str(header.get("error", "unknown error")))
-        name = self.filename
+        name = self.name
         if kind == "import":
-            raise SubmissionRejected(f"{name}: failed to import: {error}; fix the import (see {GUIDE})")
+            raise SubmissionRejected(
+                f"{name}: failed to import: {error}; fix the import (the sandbox offers the standard "
+                f"library, numpy, scipy and scftc_cli; see {GUIDE})"
+            )
         if kind == "memory":
             raise SubmissionRejected(
                 f"{name}: ran out of memory ({doing}) under the {self.limits.memory_mb} MiB limit "
                 f"({error}); keep the controller's memory bounded"
             )
         if kind == "violation":
+            raise SubmissionRejected(f"{name}: sandbox violation ({doing}): {error}; {_ACCESS}")
+        if kind == "denied":
             raise SubmissionRejected(
-                f"{name}: sandbox violation ({doing}): {error}; a controller may only compute "
-                "commands from observations: remove the file, process or network access"
+                f"{name}: the sandbox refused an operation ({doing}): {error}; {_ACCESS}"
             )
         if kind == "privileged":
             raise SubmissionRejected(
@@ -267,55 +395,88 @@ class Sandbox:
 
     def _timeout(self) -> SubmissionRejected:
         self._kill()
+        if time.monotonic() >= self._until_budget - 1e-3:
+            return SubmissionRejected(
+                f"{self.name}: ran past the total wall-time budget of {self.limits.total_wall_s:g} s for one "
+                f"submission ({self.phase}); "
+                "make the controller faster: every cell must finish within the budget"
+            )
         limit = self.limits.start_timeout_s if self.phase == "starting" else self.limits.step_timeout_s
         return SubmissionRejected(
-            f"{self.filename}: {self.phase} took longer than {limit:g} s; "
+            f"{self.name}: {self.phase} took longer than {limit:g} s; "
             "make every step finish well within the per-step time limit (no waits or endless loops)"
         )
 
     def _gone(self) -> SubmissionRejected:
-        proc = self._proc
-        code = None
-        if proc is not None:
-            try:
-                code = proc.wait(timeout=5.0)
-            except subprocess.TimeoutExpired:
-                self._kill()
-        if code in (-signal.SIGXCPU, -signal.SIGKILL) and code is not None:
+        code = self._reap(5.0)
+        if code is None:
+            self._kill()
+            code = self._proc.returncode if self._proc is not None else None
+        if code in (128 + signal.SIGXCPU, 128 + signal.SIGKILL) and self._cpu_s >= self.limits.cpu_s - 0.5:
             return SubmissionRejected(
-                f"{self.filename}: exceeded the CPU time limit of {self.limits.cpu_s} s ({self.phase}); "
+                f"{self.name}: exceeded the CPU time limit of {self.limits.cpu_s} s ({self.phase}); "
                 "make the controller cheaper per step"
             )
-        if code == VIOLATION_EXIT:
+        if code == 128 + signal.SIGSYS:
             return SubmissionRejected(
-                f"{self.filename}: sandbox violation ({self.phase}); a controller may only compute "
-                "commands from observations: remove the file, process or network access"
+                f"{self.name}: killed by the sandbox for a system call of another architecture "
+                f"({self.phase}); {_ACCESS}"
             )
+        if code == VIOLATION_EXIT:
+            return SubmissionRejected(f"{self.name}: sandbox violation ({self.phase}); {_ACCESS}")
+        tail = self._output_tail()
+        if self.phase == "starting" and tail.startswith("bwrap:"):
+            return SubmissionRejected(f"{self.name}: the sandbox could not start: {tail}")
         return SubmissionRejected(
-            f"{self.filename}: the controller process died ({self.phase}, exit code {code}): "
-            f"{self._stderr_tail()}; make the controller exit only when told to"
+            f"{self.name}: the controller process died ({self.phase}, exit code {code}): "
+            f"{tail}; make the controller exit only when told to"
         )
 
-    def _stderr_tail(self) -> str:
-        if self._stderr is None:
-            return "no output"
-        try:
-            self._stderr.flush()
-            self._stderr.seek(0)
-            lines = [ln for ln in self._stderr.read()[-4000:].decode(errors="replace").splitlines() if ln]
-        except (OSError, ValueError):
-            lines = []
+    def _output_tail(self) -> str:
+        lines = [ln for ln in self.output()[-4000:].splitlines() if ln.strip()]
         return one_line(lines[-1] if lines else "no output", 200)
 
-    def _kill(self) -> None:
-        """SIGKILL the child's process group (it leads its own session: any process it forked
-        goes with it)."""
-        if self._proc is not None and self._proc.poll() is None:
+    def _reap(self, timeout: float) -> int | None:
+        """Wait up to ``timeout`` for bubblewrap to exit; its exit status (``None``: still running).
+        Its resource usage includes the sandboxed process it reaped (for the CPU-limit message)."""
+        proc = self._proc
+        if proc is None or proc.returncode is not None:
+            return None if proc is None else proc.returncode
+        end = time.monotonic() + timeout
+        while True:
             try:
-                os.killpg(self._proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            self._proc.wait()
+                pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            except ChildProcessError:  # reaped elsewhere
+                proc.returncode = proc.returncode if proc.returncode is not None else -1
+                return proc.returncode
+            if pid:
+                proc.returncode = os.waitstatus_to_exitcode(status)
+                self._cpu_s = usage.ru_utime + usage.ru_stime
+                return proc.returncode
+            remaining = end - time.monotonic()
+            if remaining <= 0:
+                return None
+            select.select([self._pidfds[-1]] if self._pidfds else [], [], [], min(remaining, 0.05))
+
+    def _kill(self) -> None:
+        """SIGKILL the sandboxed process (PID 1 of its namespace: the kernel then kills whatever
+        else is in there) and bubblewrap, and wait until both are gone."""
+        proc = self._proc
+        if proc is None or proc.returncode is not None:
+            return
+        for pidfd in self._pidfds:
+            try:
+                signal.pidfd_send_signal(pidfd, signal.SIGKILL)
+            except OSError:
+                pass  # already exited
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except OSError:
+            pass
+        if self._reap(10.0) is None:  # pragma: no cover - SIGKILL cannot be ignored
+            proc.wait()
+        if self._pidfds:  # the sandboxed process is bubblewrap's child: gone once it is reaped
+            select.select([self._pidfds[0]], [], [], 5.0)
 
 
 class SandboxedController(Controller):

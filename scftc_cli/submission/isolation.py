@@ -1,0 +1,476 @@
+"""Operating-system isolation of a submission: the bubblewrap command, its seccomp filter, rlimits.
+
+A submitted file is untrusted code. It runs in a child process that the kernel confines; nothing
+here relies on Python-level checks (the child's audit hook only words error messages):
+
+1. **Namespaces** (bubblewrap, ``bwrap_argv``): new user, PID, network, IPC, UTS and cgroup
+   namespaces, uid/gid 65534 inside, no capabilities, no further user namespaces. The
+   interpreter is PID 1 of its own PID namespace (``--as-pid-1``): no other process of the host
+   can even be named, and when it dies the kernel kills anything left in the namespace. Its
+   filesystem is a fresh, read-only root holding only the base interpreter, the system
+   libraries, the packages a submission may import (numpy, scipy, ``scftc_cli``) and the
+   submitted file (copied by bubblewrap from a memfd, never a file on disk); ``/tmp`` is a
+   size-limited private tmpfs and the only writable place; ``/proc`` (its own) and ``/dev``
+   are read-only. The network namespace holds nothing but its own loopback. The environment
+   is rebuilt from scratch (``--clearenv``), bubblewrap's own included.
+2. **seccomp** (``seccomp_program``): a BPF filter compiled here with ``pyseccomp`` and handed
+   to bubblewrap with ``--seccomp FD``, so it is in force from the interpreter's first
+   instruction. It refuses (``EPERM``) what a controller never needs and the attacks used.
+3. **rlimits** (``limit_child``): address space, CPU seconds, file size, open files and core
+   dumps, set on the bubblewrap process before it starts and inherited by the child.
+
+Which kernel uid the sandbox holds: uid 65534 *inside* is mapped onto the uid that starts
+bubblewrap. Run by root, that would be uid 0, and a few kernel checks trust uid 0 without asking
+for a capability (sysctl files under ``/proc/sys``, e.g. ``kernel.core_pattern``). So when this
+process is root and every mounted folder is readable by others, bubblewrap is started as nobody
+(``sandbox_uid``); otherwise (an interpreter under ``/root``, say; bubblewrap resolves mount
+sources as the user it runs as) it runs as root, and ``/proc`` is read-only so that no such file
+can be opened for writing. Nothing else writable by uid 0 is mounted.
+
+The seccomp deny list and why (x86-64 names; a name the running architecture lacks is skipped):
+
+- Processes: ``fork``, ``vfork``, and ``clone`` without ``CLONE_THREAD`` (threads stay allowed:
+  numpy and the C library use them); ``clone3`` answers ``ENOSYS`` because its flags live in
+  memory a filter cannot read, and glibc then falls back to ``clone``. Nothing the submission
+  starts can outlive it, hold a lock, or get out from under the filter.
+- Other processes: ``ptrace``, ``process_vm_readv``/``writev``, ``kcmp``, ``pidfd_*``,
+  ``tkill``, ``rt_(tg)sigqueueinfo``, ``process_madvise``/``mrelease``; ``kill`` and ``tgkill``
+  only to itself (PID 1); ``prlimit64`` only on itself and only to read; ``setrlimit``,
+  ``setpriority`` on anything but itself, ``ioprio_set``. (The PID namespace already hides
+  every other process; these make the refusal explicit and independent.)
+- Network: every socket call (``socket``, ``socketpair``, ``connect``, ``bind``, ``listen``,
+  ``accept(4)``, ``send*``/``recv*``, ``(get|set)sockopt``, ``shutdown``, ``get(sock|peer)name``).
+- Files beyond read/write: ``mknod(at)`` (devices, FIFOs), the ``setxattr``/``removexattr``
+  family (incl. the ``*xattrat`` calls), ``flock`` and ``fcntl`` record locks and leases
+  (a read-only file can still be locked or leased, which would stall the host's writers),
+  ``name_to_handle_at``/``open_by_handle_at`` (the classic container escape),
+  ``fanotify_*``, ``quotactl(_fd)``, ``file_setattr``, ``cachestat`` (page-cache probing).
+- Mounts and namespaces: ``mount``, ``umount2``, ``pivot_root``, ``chroot``, ``unshare``,
+  ``setns``, the new mount API (``open_tree(_attr)``, ``move_mount``, ``fs*``,
+  ``mount_setattr``, ``statmount``, ``listmount``).
+- Kernel attack surface a controller never touches: ``bpf``, ``perf_event_open``,
+  ``userfaultfd``, ``io_uring_*``, legacy AIO, ``keyctl``/``add_key``/``request_key``,
+  ``kexec_*``, module loading, ``personality``, ``modify_ldt``, ``iopl``/``ioperm``,
+  ``memfd_secret``, NUMA placement, ``syslog``, ``acct``, ``swapon``/``off``, ``reboot``,
+  clock and host-name setters, ``vhangup``, ``uselib``, ``lsm_set_self_attr``.
+- Unknown and future system calls (numbers above the newest this build names) answer
+  ``ENOSYS``, the answer C libraries expect before falling back to an older call.
+- Any other architecture's calling convention (i386 ``int 0x80``, x32) kills the process.
+
+``execve`` cannot be refused: bubblewrap loads the filter and then executes the interpreter.
+It is harmless: without ``fork`` a process can only replace itself, keeping its namespaces,
+filter and limits; the only programs mounted are the interpreter itself (and whatever
+executables the system library folder holds), and there is nothing to gain by becoming them.
+
+Why ``pyseccomp`` (PyPI, a ctypes wrapper of the system ``libseccomp2``) and not Debian's
+``python3-seccomp``: the Debian binding is compiled for the system interpreter and installed
+into its ``dist-packages``, which the project's virtual environment does not see (and whose
+ABI need not match the venv's Python); ``pyseccomp`` installs into any venv with pip and uses
+the same system library.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import errno
+import functools
+import importlib.util
+import json
+import os
+import re
+import resource
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from scftc_cli.submission.limits import SandboxLimits
+
+SANDBOX_UID = 65534  # "nobody", inside the sandbox (and outside, when started by root: ``sandbox_uid``)
+SITE = "/opt/scftc/site"  # where the importable packages appear inside
+SUBMISSION_DIR = "/submission"  # where the submitted file appears inside (read-only)
+IMPORTABLE = ("numpy", "scipy")  # third-party packages a submission may import (with ``*.libs``)
+INSTALL_HINT = "apt-get install -y bubblewrap libseccomp2 && pip install pyseccomp"
+MIN_BWRAP = (0, 8, 0)  # --disable-userns, --size
+
+# clone(2) flags
+_CLONE_THREAD = 0x00010000
+# fcntl(2) commands that lock or lease: F_GETLK..F_SETLKW, F_OFD_*, F_SETLEASE, F_NOTIFY
+_FCNTL_LOCKS = (6, 7, 37, 38, 1024, 1026)
+
+_DENY = (
+    # processes
+    "fork vfork ptrace process_vm_readv process_vm_writev kcmp pidfd_open pidfd_send_signal "
+    "pidfd_getfd tkill rt_sigqueueinfo rt_tgsigqueueinfo process_madvise process_mrelease "
+    "setrlimit ioprio_set "
+    # network
+    "socket socketpair connect bind listen accept accept4 sendto sendmsg sendmmsg recvfrom "
+    "recvmsg recvmmsg getsockopt setsockopt shutdown getsockname getpeername socketcall "
+    # files beyond reading and writing
+    "mknod mknodat setxattr lsetxattr fsetxattr removexattr lremovexattr fremovexattr flock "
+    "name_to_handle_at open_by_handle_at fanotify_init fanotify_mark quotactl quotactl_fd cachestat "
+    # mounts and namespaces
+    "mount umount umount2 pivot_root chroot unshare setns open_tree move_mount fsopen fsconfig "
+    "fsmount fspick mount_setattr "
+    # kernel surface a controller never needs
+    "bpf perf_event_open userfaultfd io_uring_setup io_uring_enter io_uring_register io_setup "
+    "io_destroy io_submit io_cancel io_getevents io_pgetevents keyctl add_key request_key "
+    "kexec_load kexec_file_load init_module finit_module delete_module create_module "
+    "get_kernel_syms query_module personality modify_ldt iopl ioperm memfd_secret mbind "
+    "migrate_pages move_pages set_mempolicy set_mempolicy_home_node syslog acct swapon swapoff "
+    "reboot sethostname setdomainname settimeofday clock_settime clock_adjtime adjtimex "
+    "vhangup uselib lookup_dcookie nfsservctl _sysctl vm86 vm86old"
+).split()
+
+# System calls newer than the newest libseccomp 2.5 names (456), by number: from 424 on, every
+# architecture with the unified table (x86-64, aarch64, riscv64, ...) gives a call one number.
+_NEWEST_NAMED = 456
+_NEW_DENY = {457: "statmount", 458: "listmount", 460: "lsm_set_self_attr", 463: "setxattrat"}
+_NEW_DENY |= {466: "removexattrat", 467: "open_tree_attr", 469: "file_setattr"}
+_NEW_ALLOW = {462: "mseal"}  # only ever restricts the caller's own memory
+_UNIFIED_ARCHES = ("X86_64", "AARCH64", "RISCV64")
+_FUTURE_END = 1024
+
+
+@functools.cache
+def seccomp_program() -> bytes:
+    """The compiled BPF program (``struct sock_filter`` array) that bubblewrap loads.
+
+    Raises:
+        ImportError: ``pyseccomp`` is not installed.
+        RuntimeError: the system ``libseccomp`` cannot be loaded.
+    """
+    import pyseccomp as sc
+
+    eperm = sc.ERRNO(errno.EPERM)
+    filt = sc.SyscallFilter(sc.ALLOW)
+    filt.set_attr(sc.Attr.ACT_BADARCH, sc.KILL_PROCESS)
+    filt.set_attr(sc.Attr.CTL_OPTIMIZE, 2)  # a binary tree: a few comparisons per system call
+    for name in _DENY:
+        if sc.resolve_syscall(sc.Arch.NATIVE, name) >= 0:  # negative: not on this architecture
+            filt.add_rule(eperm, name)
+    filt.add_rule(eperm, "clone", sc.Arg(0, sc.MASKED_EQ, _CLONE_THREAD, 0))
+    filt.add_rule(sc.ERRNO(errno.ENOSYS), "clone3")
+    filt.add_rule(eperm, "kill", sc.Arg(0, sc.NE, 1))  # PID 1 is the submission itself
+    filt.add_rule(eperm, "tgkill", sc.Arg(0, sc.NE, 1))
+    filt.add_rule(eperm, "prlimit64", sc.Arg(0, sc.NE, 0))  # another process
+    filt.add_rule(eperm, "prlimit64", sc.Arg(2, sc.NE, 0))  # setting (getrlimit passes NULL)
+    filt.add_rule(eperm, "setpriority", sc.Arg(0, sc.NE, 0))  # a process group or a user
+    filt.add_rule(eperm, "setpriority", sc.Arg(1, sc.NE, 0))  # another process
+    for command in _FCNTL_LOCKS:
+        filt.add_rule(eperm, "fcntl", sc.Arg(1, sc.EQ, command))
+    if any(sc.system_arch() == getattr(sc.Arch, arch) for arch in _UNIFIED_ARCHES):
+        for number in range(_NEWEST_NAMED + 1, _FUTURE_END):
+            if number not in _NEW_ALLOW:
+                filt.add_rule(eperm if number in _NEW_DENY else sc.ERRNO(errno.ENOSYS), number)
+    read_fd, write_fd = os.pipe()
+    try:
+        with os.fdopen(write_fd, "wb") as sink:
+            filt.export_bpf(sink)
+        with os.fdopen(read_fd, "rb") as source:
+            return source.read()
+    except BaseException:
+        for fd in (read_fd, write_fd):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        raise
+
+
+# ------------------------------------------------------------------------------------- the mounts
+@dataclass(frozen=True)
+class Layout:
+    """What the sandbox mounts, computed once per process.
+
+    Attributes:
+        python: the base interpreter's executable (same path inside and outside).
+        binds: ``(host path, sandbox path)`` pairs, mounted read-only in this order.
+        symlinks: ``(target, sandbox path)`` pairs (``/lib -> usr/lib`` on merged-/usr systems).
+    """
+
+    python: str
+    binds: tuple[tuple[str, str], ...]
+    symlinks: tuple[tuple[str, str], ...]
+
+
+def _package_dir(name: str) -> str | None:
+    spec = importlib.util.find_spec(name)
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return os.path.realpath(next(iter(spec.submodule_search_locations)))
+
+
+@functools.cache
+def layout() -> Layout:
+    """The interpreter, system libraries and packages a submission needs, and nothing else."""
+    base = os.path.realpath(sys.base_prefix)
+    python = os.path.realpath(getattr(sys, "_base_executable", None) or sys.executable)
+    binds: list[tuple[str, str]] = [(base, base)]
+    if not python.startswith(base + "/"):
+        binds.append((python, python))
+    symlinks: list[tuple[str, str]] = []
+    for top in ("/lib", "/lib32", "/lib64", "/libx32"):
+        if os.path.islink(top):
+            symlinks.append((os.readlink(top), top))
+        elif os.path.isdir(top):
+            binds.append((top, top))
+    for path in ("/usr/lib", "/usr/lib32", "/usr/lib64", "/usr/libx32", "/etc/ld.so.cache"):
+        if os.path.exists(path) and not os.path.islink(path):
+            binds.append((os.path.realpath(path), path))
+    packages = [(name, _package_dir(name)) for name in IMPORTABLE]
+    packages.append(("scftc_cli", str(Path(__file__).resolve().parent.parent)))
+    for name, folder in packages:
+        if folder is None:
+            continue
+        binds.append((folder, f"{SITE}/{name}"))
+        libs = os.path.join(os.path.dirname(folder), f"{name}.libs")  # manylinux wheels' libraries
+        if os.path.isdir(libs):
+            binds.append((os.path.realpath(libs), f"{SITE}/{name}.libs"))
+    return Layout(python=python, binds=tuple(binds), symlinks=tuple(symlinks))
+
+
+def sandbox_filename(filename: str) -> str:
+    """Where the submitted file appears inside: its own name when that is plain, else a fixed one."""
+    plain = re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,95}\.py", filename)
+    return f"{SUBMISSION_DIR}/{filename if plain else 'submission.py'}"
+
+
+def bwrap_argv(
+    *,
+    source_fd: int,
+    source_path: str,
+    seccomp_fd: int,
+    info_fd: int,
+    tmp_mb: int,
+    command: list[str],
+) -> list[str]:
+    """The bubblewrap command line that runs ``command`` (the interpreter and its arguments).
+
+    Args:
+        source_fd: a readable fd holding the submitted bytes (bubblewrap copies it in).
+        source_path: where the copy appears (``sandbox_filename``).
+        seccomp_fd: a readable fd holding ``seccomp_program()``.
+        info_fd: bubblewrap writes the child's host PID there as JSON.
+        tmp_mb: size of the private ``/tmp``.
+        command: the program and arguments to run inside.
+    """
+    lay = layout()
+    argv = [
+        bwrap_path() or "bwrap",
+        "--unshare-all",  # user, ipc, pid, net, uts, cgroup
+        "--unshare-user",  # insist (``--unshare-all`` only tries)
+        "--unshare-cgroup",
+        "--disable-userns",
+        "--uid",
+        str(SANDBOX_UID),
+        "--gid",
+        str(SANDBOX_UID),
+        "--cap-drop",
+        "ALL",
+        "--as-pid-1",
+        "--die-with-parent",
+        "--new-session",
+        "--hostname",
+        "sandbox",
+        "--clearenv",
+    ]
+    env = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": "/tmp",
+        "TMPDIR": "/tmp",
+        "LC_ALL": "C.UTF-8",
+        "PYTHONHASHSEED": "0",
+        "PYTHONPATH": SITE,
+        **{v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+    }
+    for key, value in env.items():
+        argv += ["--setenv", key, value]
+    # /tmp first, so that an interpreter or package that lives under the host's /tmp is bound
+    # over it rather than hidden by it
+    argv += ["--size", str(tmp_mb << 20), "--perms", "0700", "--tmpfs", "/tmp"]
+    for host, inside in lay.binds:
+        argv += ["--ro-bind", host, inside]
+    for target, inside in lay.symlinks:
+        argv += ["--symlink", target, inside]
+    # /proc read-only: run by root, the sandbox's kernel uid is 0, and sysctls (/proc/sys) trust
+    # that uid alone; /dev read-only: its tmpfs would otherwise be a second writable place.
+    argv += ["--proc", "/proc", "--remount-ro", "/proc", "--dev", "/dev", "--remount-ro", "/dev"]
+    argv += ["--ro-bind-data", str(source_fd), source_path]
+    argv += ["--remount-ro", "/", "--chdir", "/tmp"]
+    argv += ["--seccomp", str(seccomp_fd), "--info-fd", str(info_fd), "--"]
+    return argv + command
+
+
+def python_command(config: dict[str, object]) -> list[str]:
+    """The interpreter inside: no bytecode writes, no user site, no ``site``, no cwd on the path."""
+    return [layout().python, "-B", "-s", "-S", "-P", "-m", "scftc_cli.submission.child", json.dumps(config)]
+
+
+# ---------------------------------------------------------------------------------------- limits
+_PR_SET_PDEATHSIG = 1
+
+
+def limit_child(limits: SandboxLimits, run_as: int | None = None) -> Callable[[], None]:
+    """A ``preexec_fn`` for the bubblewrap process: rlimits (soft = hard, so they cannot be
+    raised), the drop to ``run_as`` (uid and gid, no groups) when given, and death with this
+    process (bubblewrap passes it on to the sandbox)."""
+    mib = 1 << 20
+    settings = (
+        (resource.RLIMIT_AS, limits.memory_mb * mib),
+        (resource.RLIMIT_CPU, limits.cpu_s),  # past it SIGXCPU (ignored by a PID 1), 1 s on: SIGKILL
+        (resource.RLIMIT_FSIZE, limits.file_mb * mib),
+        (resource.RLIMIT_NOFILE, limits.open_files),
+        (resource.RLIMIT_CORE, 0),
+    )
+    parent = os.getpid()
+    libc = ctypes.CDLL(None, use_errno=True)  # loaded now: the forked child only calls it
+
+    def preexec() -> None:  # pragma: no cover - runs between fork and exec
+        for which, value in settings:
+            top = value + (1 if which == resource.RLIMIT_CPU else 0)
+            hard = resource.getrlimit(which)[1]
+            if hard != resource.RLIM_INFINITY:  # never above what this process may have
+                top = min(top, hard)
+                value = min(value, top)
+            resource.setrlimit(which, (value, top))
+        if run_as is not None:
+            os.setgroups([])
+            os.setresgid(run_as, run_as, run_as)
+            os.setresuid(run_as, run_as, run_as)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)  # after the uid change, which clears it
+        if os.getppid() != parent:  # the parent died before the line above
+            os._exit(1)
+
+    return preexec
+
+
+# ----------------------------------------------------------------------------------- availability
+def bwrap_path() -> str | None:
+    """The bubblewrap executable on ``PATH`` (``None`` when it is not installed)."""
+    return shutil.which("bwrap")
+
+
+def _version(text: str) -> tuple[int, ...]:
+    found = re.search(r"(\d+)\.(\d+)\.(\d+)", text)
+    return tuple(int(g) for g in found.groups()) if found else ()
+
+
+def sandbox_unavailable(refresh: bool = False) -> str | None:
+    """``None`` when submissions can be isolated here; otherwise one line: why not, and the fix.
+
+    It runs a trial sandbox once per process (about 50 ms; ``refresh`` runs it again) with the
+    real command line, so a kernel that refuses unprivileged user namespaces, or a container
+    without the rights to make them, is reported here rather than on the first submission.
+    """
+    if refresh:
+        _probe.cache_clear()
+    return _probe()[1]
+
+
+def sandbox_uid() -> int | None:
+    """The uid bubblewrap is started as: ``SANDBOX_UID`` when this process is root and every
+    mounted folder is readable by others (the sandbox's kernel uid is then nobody's, not root's);
+    ``None`` to start it as this process's own uid."""
+    return _probe()[0]
+
+
+def _readable_by_others(path: str) -> bool:
+    """Whether a user with no rights of its own can reach ``path`` (search every folder above it)
+    and read it (list it, for a folder)."""
+    parts = Path(path).parts
+    for depth in range(1, len(parts) + 1):
+        try:
+            mode = os.stat(os.path.join(*parts[:depth])).st_mode
+        except OSError:
+            return False
+        need = (
+            stat.S_IXOTH if depth < len(parts) else stat.S_IROTH | (stat.S_IXOTH if stat.S_ISDIR(mode) else 0)
+        )
+        if mode & need != need:
+            return False
+    return True
+
+
+@functools.cache
+def _probe() -> tuple[int | None, str | None]:
+    if sys.platform != "linux":
+        return None, f"the submission sandbox needs Linux (namespaces and seccomp); this is {sys.platform}"
+    bwrap = bwrap_path()
+    if bwrap is None:
+        return (
+            None,
+            f"the submission sandbox needs bubblewrap (bwrap), which is not installed; {INSTALL_HINT}",
+        )
+    try:
+        version = subprocess.run([bwrap, "--version"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.TimeoutExpired) as err:
+        return None, f"bubblewrap at {bwrap} does not run ({err}); reinstall it: {INSTALL_HINT}"
+    if _version(version.stdout) < MIN_BWRAP:
+        want = ".".join(map(str, MIN_BWRAP))
+        return None, f"bubblewrap {version.stdout.strip() or '?'} is older than {want}; {INSTALL_HINT}"
+    try:
+        program = seccomp_program()
+    except (ImportError, RuntimeError, OSError) as err:
+        return None, f"the submission sandbox needs pyseccomp and libseccomp ({err}); {INSTALL_HINT}"
+    candidates: list[int | None] = [None]
+    if os.geteuid() == 0 and all(_readable_by_others(host) for host, _ in layout().binds):
+        candidates.insert(0, SANDBOX_UID)
+    reason = None
+    for run_as in candidates:
+        reason = _trial_run(program, run_as)
+        if reason is None:
+            return run_as, None
+    return None, reason
+
+
+def _trial_run(program: bytes, run_as: int | None) -> str | None:
+    source_fd = os.memfd_create("scftc-trial", 0)
+    seccomp_fd = os.memfd_create("scftc-seccomp", 0)
+    info_r, info_w = os.pipe()
+    try:
+        os.write(source_fd, b"pass\n")
+        os.lseek(source_fd, 0, os.SEEK_SET)
+        os.write(seccomp_fd, program)
+        os.lseek(seccomp_fd, 0, os.SEEK_SET)
+        check = "import numpy, scftc_cli.protocol; open('/tmp/ok', 'w').write('ok')"
+        argv = bwrap_argv(
+            source_fd=source_fd,
+            source_path=sandbox_filename("trial.py"),
+            seccomp_fd=seccomp_fd,
+            info_fd=info_w,
+            tmp_mb=1,
+            command=[layout().python, "-B", "-s", "-S", "-P", "-c", check],
+        )
+        result = subprocess.run(
+            argv,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            env={"PATH": os.defpath},
+            pass_fds=(source_fd, seccomp_fd, info_w),
+            start_new_session=True,
+            preexec_fn=limit_child(SandboxLimits(), run_as),
+        )
+    except (OSError, subprocess.SubprocessError) as err:
+        return f"bubblewrap failed to start a trial sandbox ({err}); {INSTALL_HINT}"
+    finally:
+        for fd in (source_fd, seccomp_fd, info_r, info_w):
+            os.close(fd)
+    if result.returncode == 0:
+        return None
+    lines = [ln.strip() for ln in result.stderr.splitlines() if ln.strip()]
+    why = lines[-1][:200] if lines else f"exit status {result.returncode}"
+    if any(word in why for word in ("namespace", "uid map", "not permitted", "setns", "unshare")):
+        fix = (
+            "allow unprivileged user namespaces (sysctl kernel.unprivileged_userns_clone=1, "
+            "kernel.apparmor_restrict_unprivileged_userns=0) or run the container with the rights "
+            "to create them"
+        )
+    else:
+        fix = "check that the interpreter, numpy, scipy and scftc_cli are installed and readable"
+    return f"bubblewrap cannot build the submission sandbox here ({why}); {fix}"
