@@ -1,59 +1,29 @@
-"""Public and private draws of the held-out cells.
+"""The two draws every entry is scored on.
 
-The public episodes come from pinned seeds anyone can regenerate. When a secret is configured
-(``SCFTC_SECRET``, or a key file named by ``SCFTC_SECRET_FILE``), the same held-out cells are
-also scored on a private draw salted with ``HMAC-SHA256(secret, b"<version> private draw")``; an
-entry whose public settled rate beats its private one beyond both Wilson intervals on any cell is
-flagged.
+* **Public**: the pinned episodes (seeds keyed by benchmark version, split, class and index).
+  Anyone can regenerate them, every entry meets the same ones, so two entries pair episode by
+  episode (``scftc compare``). They are for development and paired comparisons, never for ranking:
+  the open code lets a submission recognise them.
+* **Sealed**: episodes of the same cells keyed by a fresh random salt (``secrets.token_bytes``),
+  drawn by the scoring process when it scores the entry and written into the entry only after the
+  run. The submission's sandboxed process never sees the salt or anything derived from it, so it
+  cannot know its episodes in advance; ``scftc leaderboard verify`` re-flies every entry on its
+  recorded salt, so sealed scores stay reproducible by anyone afterwards. No persistent secret
+  exists to leak.
 """
 
 from __future__ import annotations
 
-import hashlib
-import hmac
-import os
-from pathlib import Path
+import secrets
 
-from scftc_cli.board.models import Entry
-from scftc_cli.errors import LeaderboardError
-
-SECRET_ENV, SECRET_FILE_ENV = "SCFTC_SECRET", "SCFTC_SECRET_FILE"
+PUBLIC = b""
+SALT_BYTES = 32
 
 
-def load_secret(environ: dict[str, str] | None = None) -> tuple[bytes | None, Path | None]:
-    """The private-draw secret and its key file (if any): ``SCFTC_SECRET`` or ``SCFTC_SECRET_FILE``."""
-    env = os.environ if environ is None else environ
-    if env.get(SECRET_ENV):
-        return env[SECRET_ENV].encode(), None
-    if env.get(SECRET_FILE_ENV):
-        key_file = Path(env[SECRET_FILE_ENV])
-        try:
-            secret = key_file.read_bytes().strip()
-        except OSError as err:
-            raise LeaderboardError(
-                f"cannot read {SECRET_FILE_ENV}={key_file} ({err.strerror}); fix the path"
-            ) from None
-        if not secret:
-            raise LeaderboardError(f"{SECRET_FILE_ENV}={key_file} is empty; put the secret in it")
-        return secret, key_file
-    return None, None
+def new_salt() -> bytes:
+    """A fresh sealed-draw salt (32 random bytes from the operating system)."""
+    return secrets.token_bytes(SALT_BYTES)
 
 
-def private_salt(secret: bytes, benchmark: str) -> bytes:
-    return hmac.new(secret, f"{benchmark} private draw".encode(), hashlib.sha256).digest()
-
-
-def key_id(secret: bytes) -> str:
-    """A short public fingerprint telling which secret scored a private draw."""
-    return hmac.new(secret, b"scftc key id", hashlib.sha256).hexdigest()[:12]
-
-
-def flagged_cells(entry: Entry) -> list[str]:
-    """Cells where the public settled rate exceeds the private one beyond both intervals."""
-    if entry.private is None:
-        return []
-    return [
-        pub.label
-        for pub, prv in zip(entry.public, entry.private, strict=True)
-        if pub.settled.ci_low > prv.settled.ci_high
-    ]
+def salt_from_hex(text: str) -> bytes:
+    return bytes.fromhex(text)

@@ -1,8 +1,8 @@
-"""The operations behind ``scftc submit`` and ``scftc leaderboard rebuild|verify``.
+"""The operations behind ``scftc submit`` and ``scftc leaderboard rebuild|verify|remove``.
 
 Built-ins are flown in process (trusted code); a submission is flown in its sandbox
-(``submission/``). Every entry holds the same cells (``evaluate.board_cells``) on the public
-draw and, with a secret configured, on the private draw (``board/draws.py``).
+(``submission/``). Every entry holds the same cells (``evaluate.board_cells``) at the full cell
+size on the public draw and on its own sealed draw (``board/draws.py``).
 """
 
 from __future__ import annotations
@@ -10,38 +10,54 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import math
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from scftc_cli import __version__
-from scftc_cli.board.draws import key_id, private_salt
-from scftc_cli.board.models import BACKEND, Entry, Leaderboard
+from scftc_cli.baselines.checker import fly_prefix
+from scftc_cli.board.draws import PUBLIC, new_salt, salt_from_hex
+from scftc_cli.board.models import BACKEND, BoardEvent, Entry, Leaderboard
 from scftc_cli.board.ranking import Ranked, Ranking, rank_board
 from scftc_cli.board.store import default_submissions_dir, read_board, update_board, utc_now
-from scftc_cli.errors import ScftcError, SubmissionRejected, UnknownNameError
+from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
+from scftc_cli.errors import LeaderboardError, ScftcError, SubmissionRejected, UnknownNameError, UsageError
 from scftc_cli.evaluate import Cell, ControllerFactory, board_cells, evaluate_cells
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.records import CellResult
-from scftc_cli.registry import registry
+from scftc_cli.registry import ControllerSpec, builtin_names, registry
 from scftc_cli.spec import GATES, BenchmarkSpec
+from scftc_cli.submission.isolation import sandbox_unavailable
 from scftc_cli.submission.limits import SandboxLimits
 from scftc_cli.submission.manifest import Submission, load_submission
 from scftc_cli.submission.sandbox import Sandbox, SandboxedController
 
+if TYPE_CHECKING:
+    from scftc_cli.distributed.runner import Runner
+
+DOOR_CLASSES = ("gain_bias", "sign")  # the determinism check's train cells (a short prefix of each)
+DOOR_STEPS = 20
+
 
 @dataclass(frozen=True)
 class Scoring:
-    """How an entry is scored: cell size, limits of a sandboxed submission, progress callback."""
+    """How entries are scored: the benchmark, the submission sandbox's limits, progress.
+
+    ``n_faults``/``n_seeds`` other than the spec's exist for dry runs only: the board refuses
+    entries that are not full size.
+    """
 
     spec: BenchmarkSpec
-    n_faults: int | None = None  # None: the spec's full cell
+    n_faults: int | None = None
     n_seeds: int | None = None
     limits: SandboxLimits = field(default_factory=SandboxLimits)
     progress: Progress = NO_PROGRESS
-    secret: bytes | None = None
-    key_file: Path | None = None
     backend: str = BACKEND
+    runner: Runner | None = None  # a Dask cluster to fly the cells on
 
     @property
     def faults(self) -> int:
@@ -51,19 +67,21 @@ class Scoring:
     def seeds(self) -> int:
         return self.spec.n_seeds if self.n_seeds is None else self.n_seeds
 
-    def draws(self, with_private: bool = True) -> list[tuple[str, bytes]]:
-        out = [("public", b"")]
-        if with_private and self.secret is not None:
-            out.append(("private", private_salt(self.secret, self.spec.version)))
-        return out
+    @property
+    def full_size(self) -> bool:
+        return (self.faults, self.seeds) == (self.spec.n_faults, self.spec.n_seeds)
 
 
-def steps_per_entry(scoring: Scoring, with_private: bool = True) -> int:
-    return len(board_cells(scoring.spec)) * len(scoring.draws(with_private)) * scoring.spec.steps
+Draws = dict[str, bytes]  # draw name -> salt (b"" for the public draw)
+
+
+def steps_per_entry(scoring: Scoring, draws: int = 2) -> int:
+    """Simulated steps of scoring one entry on ``draws`` draws (a progress bar's total)."""
+    return len(board_cells(scoring.spec)) * draws * scoring.spec.steps
 
 
 def _score(
-    make: ControllerFactory, scoring: Scoring, draws: list[tuple[str, bytes]]
+    make: ControllerFactory, ref: ControllerRef, scoring: Scoring, draws: Draws, label: str
 ) -> dict[str, list[CellResult]]:
     cells = board_cells(scoring.spec)
     return {
@@ -78,31 +96,73 @@ def _score(
                 backend=scoring.backend,
                 salt=salt,
                 progress=scoring.progress,
+                label=label,
+                runner=scoring.runner,
+                ref=ref,
             )
         ]
-        for draw, salt in draws
+        for draw, salt in draws.items()
     }
 
 
-def score_builtin(name: str, scoring: Scoring, with_private: bool = True) -> dict[str, list[CellResult]]:
-    """Per-draw cell results of the registered controller ``name`` (in process: trusted code)."""
-    entry = registry(scoring.spec.version)[name]
-    return _score(lambda _cell: entry.make(), scoring, scoring.draws(with_private))
+def score_builtin(entry: ControllerSpec, scoring: Scoring, draws: Draws) -> dict[str, list[CellResult]]:
+    """Per-draw cell results of a built-in controller (in process: trusted code)."""
+    return _score(
+        lambda _cell: entry.make(), BuiltinRef(entry.name, scoring.spec.version), scoring, draws, entry.name
+    )
+
+
+def _sandbox(sub: Submission, scoring: Scoring, deadline: float | None) -> Sandbox:
+    return Sandbox(
+        sub.source, sub.path.name, sub.manifest.entry, sub.imports, scoring.limits, deadline=deadline
+    )
+
+
+def _budget(scoring: Scoring) -> float:
+    """One deadline for everything asked of one submission (determinism check and every cell)."""
+    return time.monotonic() + scoring.limits.total_wall_s
 
 
 def score_submission(
-    sub: Submission, scoring: Scoring, with_private: bool = True
+    sub: Submission, scoring: Scoring, draws: Draws, deadline: float | None = None
 ) -> dict[str, list[CellResult]]:
-    """Per-draw cell results of a submission flown in one sandboxed child process."""
-    deny = (scoring.key_file,) if scoring.key_file is not None else ()
-    with Sandbox(sub.source, sub.path.name, sub.manifest.entry, sub.imports, scoring.limits, deny) as box:
+    """Per-draw cell results of a submission flown in one sandboxed process (on a cluster: one per
+    chunk, on the workers). The process is told the cell it flies, never the draw, and never
+    receives a salt."""
+    ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
+    if scoring.runner is not None:
+        return _score(lambda _cell: _unused(), ref, scoring, draws, sub.manifest.name)
+    with _sandbox(sub, scoring, deadline if deadline is not None else _budget(scoring)) as box:
         proxy = SandboxedController(box)
 
         def controller_for(cell: Cell) -> Controller:
-            proxy.where = f"cell {cell.label}"  # never says which draw
+            proxy.where = f"cell {cell.label}"
             return proxy
 
-        return _score(controller_for, scoring, scoring.draws(with_private))
+        return _score(controller_for, ref, scoring, draws, sub.manifest.name)
+
+
+def _unused() -> Controller:
+    raise AssertionError("a cluster run builds its controllers on the workers")  # pragma: no cover
+
+
+def check_deterministic(sub: Submission, scoring: Scoring, deadline: float | None = None) -> None:
+    """Fly a short prefix of two train cells twice, each time in a fresh sandbox; reject the
+    submission if any command differs (a non-deterministic entry could never be verified)."""
+    flights = []
+    for _ in range(2):
+        with _sandbox(sub, scoring, deadline) as box:
+            proxy = SandboxedController(box)
+            proxy.where = "the determinism check"
+            flights.append([fly_prefix(proxy, scoring.spec.version, c, DOOR_STEPS) for c in DOOR_CLASSES])
+    for fault_class, first, again in zip(DOOR_CLASSES, *flights, strict=True):
+        if not np.array_equal(first, again):
+            k = int(np.argmax(np.any(first != again, axis=(0, 2))))
+            raise SubmissionRejected(
+                f"{sub.path.name}: not deterministic: two runs on the same observations gave different "
+                f"commands at step {k} of the train {fault_class} check; seed any randomness from the "
+                "observations or a constant, never from time, os.urandom or global state"
+            )
 
 
 def _entry(
@@ -112,37 +172,52 @@ def _entry(
     privileged: bool,
     summary: str,
     results: dict[str, list[CellResult]],
+    salt: bytes,
     scoring: Scoring,
     **extra: object,
 ) -> Entry:
-    private = results.get("private")
-    return Entry(
-        name=name,
-        kind=kind,
-        privileged=privileged,
-        summary=summary,
-        benchmark_version=scoring.spec.version,
-        package_version=__version__,
-        backend=scoring.backend,
-        created_utc=utc_now(),
-        n_faults=scoring.faults,
-        n_seeds=scoring.seeds,
-        public=results["public"],
-        private=private,
-        private_key_id=key_id(scoring.secret) if private is not None and scoring.secret else None,
-        **extra,
+    return Entry.model_validate(
+        {
+            "name": name,
+            "kind": kind,
+            "privileged": privileged,
+            "summary": summary,
+            "benchmark_version": scoring.spec.version,
+            "package_version": __version__,
+            "backend": scoring.backend,
+            "created_utc": utc_now(),
+            "n_faults": scoring.faults,
+            "n_seeds": scoring.seeds,
+            "public": results["public"],
+            "sealed": results["sealed"],
+            "sealed_salt": salt.hex(),
+            **extra,
+        }
     )
 
 
+def artifact_hashes(entry: ControllerSpec) -> dict[str, str]:
+    """sha256 of each file a built-in loads, by package-relative path."""
+    return {
+        rel: hashlib.sha256(path.read_bytes()).hexdigest()
+        for rel, path in zip(entry.artifacts, entry.artifact_paths(), strict=True)
+    }
+
+
 def builtin_entry(name: str, scoring: Scoring) -> Entry:
+    """Score a built-in on the public draw and a fresh sealed draw."""
     info = registry(scoring.spec.version)[name]
+    salt = new_salt()
+    results = score_builtin(info, scoring, {"public": PUBLIC, "sealed": salt})
     return _entry(
         name=name,
         kind="builtin",
         privileged=info.privileged,
         summary=info.summary,
-        results=score_builtin(name, scoring),
+        results=results,
+        salt=salt,
         scoring=scoring,
+        artifacts=artifact_hashes(info),
     )
 
 
@@ -154,13 +229,13 @@ def _relative_source(path: Path, root: Path) -> str:
 
 
 def taken_names(board: Leaderboard) -> set[str]:
-    return {e.name for e in board.entries} | set(registry(None))
+    return {e.name for e in board.entries} | builtin_names()
 
 
 def _check_name_free(sub: Submission, board: Leaderboard, board_path: Path) -> None:
     name = sub.manifest.name
     if name in taken_names(board):
-        where = "a built-in controller" if name in registry(None) else f"already on {board_path}"
+        where = "a built-in controller" if name in builtin_names() else f"already on {board_path}"
         raise SubmissionRejected(
             f"{sub.path.name}: name `{name}` is {where}; choose another SUBMISSION['name']"
         )
@@ -168,20 +243,47 @@ def _check_name_free(sub: Submission, board: Leaderboard, board_path: Path) -> N
 
 @dataclass(frozen=True)
 class SubmitOutcome:
-    """A scored submission: its entry, the board it landed on (``None`` for a dry run), and where
-    it ranks on that board (for a dry run: as if it had been added)."""
+    """A scored submission. Landed: its entry, the new board and its ranking there. Dry run
+    (``board`` is ``None``): the public-draw results only, nothing ranked or written."""
 
-    entry: Entry
-    board: Leaderboard | None
-    ranking: Ranking
-    ranked: Ranked
+    public: list[CellResult]
+    entry: Entry | None = None
+    board: Leaderboard | None = None
+    ranking: Ranking | None = None
+    ranked: Ranked | None = None
 
 
 def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = False) -> SubmitOutcome:
-    """Validate, fly and (unless ``dry_run``) append a submission. A rejection writes nothing."""
+    """Validate and fly a submission; unless ``dry_run``, check it is deterministic, score its
+    sealed draw and append it to the board. A rejection writes nothing.
+
+    A dry run flies the public draw only, at any cell size: it is the development check. Landing
+    an entry needs the full cell size and the sandbox.
+    """
     sub = load_submission(path)
-    _check_name_free(sub, read_board(board_path, scoring.spec.version, missing_ok=True), board_path)
-    results = score_submission(sub, scoring)
+    deadline = _budget(scoring)
+    benchmark = scoring.spec.version
+    flies = sub.manifest.benchmark
+    if flies != benchmark:
+        raise UsageError(
+            f"{sub.path.name} flies {flies} (SUBMISSION['benchmark']), not {benchmark}; "
+            f"pass --benchmark {flies} or port the controller"
+        )
+    if dry_run:
+        results = score_submission(sub, scoring, {"public": PUBLIC}, deadline)
+        return SubmitOutcome(public=results["public"])
+    if not scoring.full_size:
+        raise SubmissionRejected(
+            f"only full-size runs land on a board ({scoring.spec.n_faults} faults x "
+            f"{scoring.spec.n_seeds} seeds per cell); other sizes are for --dry-run"
+        )
+    why = sandbox_unavailable()
+    if why is not None:
+        raise SubmissionRejected(f"cannot land a submission without the sandbox: {why}")
+    _check_name_free(sub, read_board(board_path, benchmark, missing_ok=True), board_path)
+    check_deterministic(sub, scoring, deadline)
+    salt = new_salt()
+    results = score_submission(sub, scoring, {"public": PUBLIC, "sealed": salt}, deadline)
     m = sub.manifest
     entry = _entry(
         name=m.name,
@@ -189,6 +291,7 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
         privileged=False,
         summary=m.description,
         results=results,
+        salt=salt,
         scoring=scoring,
         version=m.version,
         authors=list(m.authors),
@@ -198,23 +301,29 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
         sha256=sub.sha256,
         source=_relative_source(sub.path, board_path.resolve().parent.parent),
     )
-    if dry_run:
-        current = read_board(board_path, scoring.spec.version, missing_ok=True)
-        return _outcome(entry, None, current.model_copy(update={"entries": [*current.entries, entry]}))
 
     def append(board: Leaderboard) -> Leaderboard:
         _check_name_free(sub, board, board_path)  # again, under the lock: a concurrent submit may have won
         board.entries.append(entry)
+        board.history.append(_event(board, "added", entry.name))
         return board
 
-    board = update_board(board_path, scoring.spec.version, append)
-    return _outcome(entry, board, board)
-
-
-def _outcome(entry: Entry, landed: Leaderboard | None, ranked_on: Leaderboard) -> SubmitOutcome:
-    ranking = rank_board(ranked_on)
+    board = update_board(board_path, benchmark, append)
+    ranking = rank_board(board)
     ranked = next(r for r in ranking.deployable if r.entry.name == entry.name)
-    return SubmitOutcome(entry, landed, ranking, ranked)
+    return SubmitOutcome(results["public"], entry, board, ranking, ranked)
+
+
+def _event(board: Leaderboard, action: str, name: str, reason: str = "") -> BoardEvent:
+    return BoardEvent.model_validate(
+        {
+            "board_version": board.version + 1,
+            "utc": utc_now(),
+            "action": action,
+            "name": name,
+            "reason": reason,
+        }
+    )
 
 
 @dataclass(frozen=True)
@@ -229,10 +338,12 @@ def rebuild(
     names: Iterable[str] | None = None,
     on_entry: Callable[[str, float, str | None], None] | None = None,
 ) -> RebuildReport:
-    """Re-score built-in controllers (all registered ones by default) and write them to the board,
-    in registry order, keeping every submission. A controller that cannot be scored (e.g. its tuned
-    parameters are missing) is reported and left off the board rather than kept stale."""
+    """Re-score built-in controllers (all registered ones by default) on the public draw and a
+    fresh sealed draw, and write them to the board in registry order, keeping every submission.
+    A controller that cannot be scored is reported and left off the board rather than kept stale."""
     benchmark = scoring.spec.version
+    if not scoring.full_size:
+        raise LeaderboardError("a board holds full-size entries only; drop --n-faults/--n-seeds")
     battery = list(registry(benchmark))
     chosen = battery if names is None else list(names)
     for name in chosen:
@@ -259,9 +370,25 @@ def rebuild(
         kept.update(fresh)
         builtins = [kept[n] for n in battery if n in kept and n not in failed]
         board.entries = builtins + [e for e in board.entries if e.kind == "submission"]
+        board.history += [_event(board, "rebuilt", name) for name in fresh]
         return board
 
     return RebuildReport(update_board(board_path, benchmark, swap_in), failed)
+
+
+def remove(board_path: Path, benchmark: str, name: str, reason: str) -> Leaderboard:
+    """Take entry ``name`` off the board (the removal and its reason stay in the board's history)."""
+    if not reason.strip():
+        raise LeaderboardError("say why with --reason (it is kept in the board's history)")
+
+    def drop(board: Leaderboard) -> Leaderboard:
+        if board.entry(name) is None:
+            raise UnknownNameError("entry", name, [e.name for e in board.entries])
+        board.entries = [e for e in board.entries if e.name != name]
+        board.history.append(_event(board, "removed", name, reason.strip()))
+        return board
+
+    return update_board(board_path, benchmark, drop)
 
 
 # ---------------------------------------------------------------------------------------- verify
@@ -300,26 +427,31 @@ def find_submission_file(entry: Entry, submissions_dir: Path, root: Path) -> Pat
 @dataclass
 class VerifyReport:
     board: Leaderboard
-    problems: list[str] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
+    problems: dict[str, list[str]] = field(default_factory=dict)  # entry name -> what differs
     checked: int = 0
 
     @property
     def ok(self) -> bool:
         return not self.problems
 
-
-def _recheck_private(entry: Entry, scoring: Scoring) -> bool:
-    """Whether the configured secret is the one that scored ``entry``'s private draw."""
-    if entry.private is None or scoring.secret is None:
-        return False
-    return entry.private_key_id == key_id(scoring.secret)
+    def fixes(self) -> list[str]:
+        """One suggested fix per entry that failed, fitting its kind."""
+        out = []
+        for name in self.problems:
+            entry = self.board.entry(name)
+            if entry is None or entry.kind == "builtin":
+                out.append(f"{name}: regenerate it with `scftc leaderboard rebuild --only {name}`")
+            else:
+                out.append(
+                    f"{name}: remove it (`scftc leaderboard remove {name} --reason ...`) "
+                    "or re-submit its file"
+                )
+        return out
 
 
 def verify_steps(board: Leaderboard, scoring: Scoring) -> int:
     """Simulation steps ``verify`` will take (for its progress bar)."""
-    per_draw = len(board_cells(scoring.spec)) * scoring.spec.steps
-    return sum(per_draw * (2 if _recheck_private(e, scoring) else 1) for e in board.entries)
+    return len(board.entries) * steps_per_entry(scoring)
 
 
 def verify(
@@ -328,29 +460,23 @@ def verify(
     submissions_dir: Path | None = None,
     on_entry: Callable[[str, list[str], float], None] | None = None,
 ) -> VerifyReport:
-    """Re-run every entry at its own cell size and compare. Private draws are re-run only when the
-    configured secret is the one that scored them."""
-    board = read_board(board_path, scoring.spec.version)
+    """Re-fly every entry on its public draw and on its recorded sealed salt, and compare."""
+    benchmark = scoring.spec.version
+    board = read_board(board_path, benchmark)
     root = board_path.resolve().parent.parent
     submissions_dir = submissions_dir or default_submissions_dir(board_path)
     report = VerifyReport(board)
-    battery = registry(scoring.spec.version)
+    battery = registry(benchmark)
     for name in battery:
         if board.entry(name) is None:
-            report.problems.append(
-                f"{name}: registered controller missing from the board; run "
-                f"`scftc leaderboard rebuild --only {name}`"
-            )
+            report.problems[name] = ["registered built-in controller missing from the board"]
     for entry in board.entries:
         start = dt.datetime.now()
-        entry_scoring = replace(
-            scoring, n_faults=entry.n_faults, n_seeds=entry.n_seeds, backend=entry.backend
+        problems = _verify_entry(
+            entry, replace(scoring, n_faults=None, n_seeds=None), battery, submissions_dir, root
         )
-        recheck_private = _recheck_private(entry, scoring)
-        if entry.private is not None and not recheck_private:
-            report.notes.append(f"{entry.name}: private draw not re-run (its secret is not configured)")
-        problems = _verify_entry(entry, entry_scoring, recheck_private, battery, submissions_dir, root)
-        report.problems += [f"{entry.name}: {p}" for p in problems]
+        if problems:
+            report.problems[entry.name] = problems
         report.checked += 1
         if on_entry is not None:
             on_entry(entry.name, problems, (dt.datetime.now() - start).total_seconds())
@@ -358,17 +484,20 @@ def verify(
 
 
 def _verify_entry(
-    entry: Entry, scoring: Scoring, recheck_private: bool, battery: dict, submissions_dir: Path, root: Path
+    entry: Entry, scoring: Scoring, battery: dict[str, ControllerSpec], submissions_dir: Path, root: Path
 ) -> list[str]:
+    draws = {"public": PUBLIC, "sealed": salt_from_hex(entry.sealed_salt)}
     try:
         if entry.kind == "builtin":
             if entry.name not in battery:
-                return [
-                    "built-in controller no longer registered; remove it with `scftc leaderboard rebuild`"
-                ]
-            if battery[entry.name].privileged != entry.privileged:
-                return ["privileged flag differs from the registry; rebuild it"]
-            results = score_builtin(entry.name, scoring, recheck_private)
+                return ["built-in controller no longer registered"]
+            info = battery[entry.name]
+            if info.privileged != entry.privileged:
+                return ["privileged flag differs from the registry"]
+            changed = sorted(p for p, h in artifact_hashes(info).items() if entry.artifacts.get(p) != h)
+            if changed or set(entry.artifacts) != set(info.artifacts):
+                return [f"its parameter or weight files changed since it was scored: {', '.join(changed)}"]
+            results = score_builtin(info, scoring, draws)
         else:
             path = find_submission_file(entry, submissions_dir, root)
             if path is None:
@@ -377,12 +506,11 @@ def _verify_entry(
             sub = load_submission(path)
             if sub.manifest.name != entry.name:
                 return [f"{path} is named `{sub.manifest.name}` in its manifest"]
-            results = score_submission(sub, scoring, recheck_private)
+            results = score_submission(sub, scoring, draws)
     except ScftcError as err:
         return [f"re-run failed: {err}"]
     except Exception as err:
         return [f"re-run failed: {type(err).__name__}: {err}"]
-    problems = [f"public {d}" for d in compare_cells(entry.public, results["public"])]
-    if recheck_private and entry.private is not None:
-        problems += [f"private {d}" for d in compare_cells(entry.private, results["private"])]
-    return problems
+    return [f"public {d}" for d in compare_cells(entry.public, results["public"])] + [
+        f"sealed {d}" for d in compare_cells(entry.sealed, results["sealed"])
+    ]

@@ -1,9 +1,10 @@
 """Leaderboard files: tamper-evident reads, atomic locked writes.
 
 Every read validates the whole file (``board/models.py``), so a corrupt or hand-edited file is
-refused with the fix, and never overwritten. Every write holds a ``filelock.FileLock``, re-reads
-the board, increments its version, and replaces the file atomically (temporary file, fsync,
-rename): readers see the old board or the new one, never half of either.
+refused with the fix, and never overwritten. Every write holds a ``filelock.FileLock`` (an OS
+lock: a killed holder releases it), re-reads the board, increments its version, and replaces the
+file atomically (temporary file, fsync, rename): readers see the old board or the new one, never
+half of either. A temporary file a killed writer left behind is removed by the next command.
 """
 
 from __future__ import annotations
@@ -22,7 +23,10 @@ from scftc_cli.board.models import Leaderboard, empty_board
 from scftc_cli.errors import LeaderboardError
 
 LOCK_TIMEOUT_S = 300.0
-FIX_CORRUPT = "restore it (`git checkout -- {path}`) or regenerate it (`scftc leaderboard rebuild{flag}`)"
+FIX_CORRUPT = (
+    "restore it from version control (`git checkout -- {path}`), or move it aside and regenerate the "
+    "built-ins (`scftc leaderboard rebuild{flag}`; submissions must then be re-submitted)"
+)
 
 
 def utc_now() -> str:
@@ -51,6 +55,7 @@ def read_board(path: Path, benchmark: str, *, missing_ok: bool = False) -> Leade
     path = Path(path)
     flag = f" --benchmark {benchmark} --leaderboard {path}"
     fix = FIX_CORRUPT.format(path=path, flag=flag)
+    sweep_if_idle(path)
     if not path.exists():
         if missing_ok:
             return empty_board(benchmark)
@@ -84,6 +89,13 @@ def board_text(board: Leaderboard) -> str:
     return json.dumps(board.model_dump(mode="json", by_alias=True), indent=1) + "\n"
 
 
+def write_text_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file and a rename: no half-written file, ever."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_write(path, text)
+
+
 def _atomic_write(path: Path, text: str) -> None:
     """Temporary file in the same folder, fsync, then ``os.replace``: readers see old or new."""
     mode = path.stat().st_mode & 0o777 if path.exists() else 0o644
@@ -105,6 +117,25 @@ def _atomic_write(path: Path, text: str) -> None:
         os.close(dir_fd)
 
 
+def _sweep_temporaries(path: Path) -> None:
+    """Remove temporary board files a killed writer left behind (call only while holding the lock:
+    no live writer can own one then)."""
+    for stale in path.parent.glob(f".{path.name}.*.tmp"):
+        stale.unlink(missing_ok=True)
+
+
+def sweep_if_idle(path: Path) -> None:
+    """Clean up after a killed writer when no writer is active (a lock that cannot be taken at
+    once means one is, and its temporary file is not stale)."""
+    if not path.parent.is_dir():
+        return
+    try:
+        with FileLock(f"{path}.lock", timeout=0):
+            _sweep_temporaries(path)
+    except (Timeout, OSError):
+        pass
+
+
 def update_board(
     path: Path,
     benchmark: str,
@@ -117,6 +148,7 @@ def update_board(
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         with FileLock(f"{path}.lock", timeout=lock_timeout_s):
+            _sweep_temporaries(path)
             current = read_board(path, benchmark, missing_ok=True)
             changed = change(current.model_copy(deep=True))
             new = Leaderboard.model_validate(

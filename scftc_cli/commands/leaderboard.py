@@ -14,12 +14,14 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 
 from scftc_cli.commands.common import (
     DEFAULT,
     BenchmarkOption,
     BoardOption,
-    choice,
+    SchedulerOption,
+    WorkersOption,
     exits_cleanly,
     progress_bar,
     stderr,
@@ -32,6 +34,7 @@ class BoardFormat(StrEnum):
     markdown = "markdown"
     json = "json"
     csv = "csv"
+    html = "html"
 
 
 SubBenchmarkOption = Annotated[
@@ -42,6 +45,7 @@ leaderboard_app = typer.Typer(
     help="Show the leaderboard (deployable entries ranked, oracles apart), verify or rebuild it.",
     no_args_is_help=False,
     add_completion=False,
+    rich_markup_mode=None,  # plain help: flags shown as flags, brackets as written
 )
 
 
@@ -78,12 +82,18 @@ def show_command(
     ] = BoardFormat.markdown,
     leaderboard: BoardOption = None,
     benchmark: BenchmarkOption = DEFAULT,
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Write to this file instead of stdout (atomically).", show_default=False),
+    ] = None,
 ) -> None:
-    """Show the leaderboard: deployable entries ranked, privileged oracles apart as upper bounds."""
+    """Show the leaderboard: deployable entries in tie groups on their sealed draw, privileged
+    oracles apart as upper bounds. --format html writes one self-contained page with every
+    benchmark version's board (or just --leaderboard's)."""
     if ctx.invoked_subcommand is not None:
-        if _explicit(ctx, "output_format"):
+        if _explicit(ctx, "output_format") or out is not None:
             raise UsageError(
-                f"--format applies to showing the board, not to `{ctx.invoked_subcommand}`; drop it"
+                f"--format/--out apply to showing the board, not to `{ctx.invoked_subcommand}`; drop it"
             )
         ctx.obj = {
             "leaderboard": leaderboard,
@@ -91,11 +101,26 @@ def show_command(
         }
         return
     from scftc_cli.board.render import render_board
-    from scftc_cli.board.store import default_board_path, read_board
+    from scftc_cli.board.store import default_board_path, read_board, write_text_atomically
 
-    board = read_board(leaderboard or default_board_path(benchmark), benchmark)
-    fmt = choice(output_format)
-    typer.echo(render_board(board, fmt), nl=fmt == "json")
+    fmt = BoardFormat(output_format).value
+    if fmt == "html":
+        from scftc_cli.board.html import board_html
+        from scftc_cli.spec import SPECS
+
+        if leaderboard is not None or _explicit(ctx, "benchmark"):
+            boards = [read_board(leaderboard or default_board_path(benchmark), benchmark)]
+        else:
+            boards = [read_board(default_board_path(v), v) for v in SPECS if default_board_path(v).exists()]
+        text = board_html(boards)
+    else:
+        text = render_board(read_board(leaderboard or default_board_path(benchmark), benchmark), fmt)
+        text = text if text.endswith("\n") else text + "\n"
+    if out is None:
+        typer.echo(text, nl=False)
+    else:
+        write_text_atomically(out, text)
+        stderr.print(f"wrote {out}", highlight=False)
 
 
 @leaderboard_app.command("verify")
@@ -111,24 +136,24 @@ def verify_command(
         ),
     ] = None,
     step_timeout: Annotated[float, typer.Option(hidden=True, min=0.01)] = SandboxLimits().step_timeout_s,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
-    """Re-run every entry and exit 1 naming any entry whose numbers differ.
+    """Re-fly every entry on its public draw and its recorded sealed salt; exit 1 naming every
+    entry whose numbers differ, with the fix that fits it.
 
     Built-ins come from the registry, submissions from submissions/ (found by sha256).
     """
-    from scftc_cli.board.draws import load_secret
     from scftc_cli.board.ops import Scoring, verify, verify_steps
     from scftc_cli.board.store import read_board
+    from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.spec import get_spec
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
     spec = get_spec(bench)
     board = read_board(board_path, bench)
-    secret, key_file = load_secret()
-    scoring = Scoring(
-        spec, limits=replace(SandboxLimits(), step_timeout_s=step_timeout), secret=secret, key_file=key_file
-    )
+    scoring = Scoring(spec, limits=replace(SandboxLimits(), step_timeout_s=step_timeout))
     total = len(board.entries)
     done = {"i": 0}
     start = time.monotonic()
@@ -136,20 +161,26 @@ def verify_command(
     def on_entry(name: str, problems: list[str], seconds: float) -> None:
         done["i"] += 1
         status = "[green]ok[/green]" if not problems else f"[red]DIFFERS[/red] ({len(problems)} numbers)"
-        stderr.print(f"[{done['i']}/{total}] {name}: {status} ({seconds:.1f} s)", highlight=False)
+        stderr.print(f"[{done['i']}/{total}] {escape(name)}: {status} ({seconds:.1f} s)", highlight=False)
 
-    with progress_bar(f"verifying {board_path}", verify_steps(board, scoring)) as progress:
-        report = verify(board_path, replace(scoring, progress=progress), submissions, on_entry=on_entry)
-    for note in report.notes:
-        stderr.print(f"note: {note}", highlight=False, soft_wrap=True)
-    for problem in report.problems:
-        stderr.print(f"[red]mismatch:[/red] {problem}", highlight=False, soft_wrap=True)
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar(f"verifying {board_path}", verify_steps(board, scoring)) as progress,
+    ):
+        report = verify(
+            board_path, replace(scoring, progress=progress, runner=runner), submissions, on_entry=on_entry
+        )
+    for name, problems in report.problems.items():
+        for problem in problems:
+            stderr.print(
+                f"[red]mismatch:[/red] {escape(name)}: {escape(problem)}", highlight=False, soft_wrap=True
+            )
+    for fix in report.fixes():
+        stderr.print(f"fix: {escape(fix)}", highlight=False, soft_wrap=True)
     elapsed = time.monotonic() - start
     if not report.ok:
-        names = sorted({p.split(":", 1)[0] for p in report.problems})
         raise LeaderboardError(
-            f"{board_path} does not match the code for {', '.join(names)}; find what changed, then "
-            "regenerate the built-ins with `scftc leaderboard rebuild` (submissions must be resubmitted)"
+            f"{board_path} does not match the code for {', '.join(report.problems)} (fixes above)"
         )
     typer.echo(
         f"verified {report.checked} entries of {board_path} (version {board.version}) in {elapsed:.0f} s"
@@ -166,34 +197,38 @@ def rebuild_command(
         list[str] | None,
         typer.Option(help="Re-score only this built-in controller (repeatable).", show_default=False),
     ] = None,
-    n_faults: Annotated[int | None, typer.Option(hidden=True, min=1)] = None,
-    n_seeds: Annotated[int | None, typer.Option(hidden=True, min=1)] = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
-    """Re-score the built-in battery on the held-out cells and write it to the leaderboard.
-
-    Every registered controller (or those named by --only) at n = 500 per cell; submissions are kept.
-    """
-    from scftc_cli.board.draws import load_secret
+    """Re-score the built-in battery on the public draw and a fresh sealed draw (n = 500 per cell)
+    and write it to the leaderboard; submissions are kept."""
     from scftc_cli.board.ops import Scoring, rebuild, steps_per_entry
+    from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.registry import registry
     from scftc_cli.spec import get_spec
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
     spec = get_spec(bench)
-    secret, key_file = load_secret()
-    scoring = Scoring(spec, n_faults, n_seeds, secret=secret, key_file=key_file)
+    scoring = Scoring(spec)
     names = only or list(registry(spec.version))
     total = len(names) * steps_per_entry(scoring)
 
     def on_entry(name: str, seconds: float, error: str | None) -> None:
         if error is None:
-            stderr.print(f"scored {name} ({seconds:.1f} s)", highlight=False)
+            stderr.print(f"scored {escape(name)} ({seconds:.1f} s)", highlight=False)
         else:
-            stderr.print(f"[red]could not score {name}:[/red] {error}", highlight=False, soft_wrap=True)
+            stderr.print(
+                f"[red]could not score {escape(name)}:[/red] {escape(error)}", highlight=False, soft_wrap=True
+            )
 
-    with progress_bar(f"scoring {len(names)} controllers", total) as progress:
-        report = rebuild(board_path, replace(scoring, progress=progress), only, on_entry=on_entry)
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar(f"scoring {len(names)} controllers", total) as progress,
+    ):
+        report = rebuild(
+            board_path, replace(scoring, progress=progress, runner=runner), only, on_entry=on_entry
+        )
     if report.board is not None:
         written = len(names) - len(report.failed)
         typer.echo(f"wrote {written} built-in entries to {board_path} (board version {report.board.version})")
@@ -202,6 +237,23 @@ def rebuild_command(
             f"could not score {', '.join(report.failed)} (left off the board); fix them and run "
             f"`scftc leaderboard rebuild --only NAME`"
         )
+
+
+@leaderboard_app.command("remove")
+@exits_cleanly
+def remove_command(
+    ctx: typer.Context,
+    name: Annotated[str, typer.Argument(help="The entry to take off the board.")],
+    reason: Annotated[str, typer.Option(help="Why (kept in the board's history).")],
+    leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
+) -> None:
+    """Remove an entry; the board's version increments and the removal stays in its history."""
+    from scftc_cli.board.ops import remove
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    board = remove(board_path, bench, name, reason)
+    typer.echo(f"removed `{name}` from {board_path} (board version {board.version})")
 
 
 @exits_cleanly
