@@ -9,15 +9,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
+from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import UnknownNameError, UsageError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
+from scftc_cli.registry import controller_spec
 from scftc_cli.scoring import episode_outcomes, score_cell
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
+
+if TYPE_CHECKING:
+    from scftc_cli.distributed.runner import Runner
 
 
 @dataclass(frozen=True)
@@ -66,12 +73,24 @@ def board_cells(spec: BenchmarkSpec) -> list[Cell]:
 
 @dataclass(frozen=True)
 class CellRun:
-    """A controller flown through one cell: the scored record and what it was made of."""
+    """A controller flown through one cell: the scored record and what it was made of.
+
+    ``episodes`` is ``None`` after a cluster run (the workers drew them); ``drawn()`` draws them
+    again here when a per-episode log needs them.
+    """
 
     cell: Cell
     result: CellResult
     outcomes: EpisodeOutcomes
-    episodes: Episodes
+    episodes: Episodes | None
+    draw: tuple[str, int, int, bytes] = ("", 0, 0, b"")  # (benchmark, n_faults, n_seeds, salt)
+
+    def drawn(self) -> Episodes:
+        if self.episodes is not None:
+            return self.episodes
+        benchmark, n_faults, n_seeds, salt = self.draw
+        c = self.cell
+        return testbed(benchmark).draw(c.split, c.fault_class, c.sensor, n_faults, n_seeds, salt)
 
 
 def evaluate_cell(
@@ -104,8 +123,20 @@ def evaluate_cells(
     salt: bytes = b"",
     progress: Progress = NO_PROGRESS,
     label: str = "",
+    runner: Runner | None = None,
+    ref: ControllerRef | None = None,
 ) -> list[CellRun]:
-    """``evaluate_cell`` over ``cells``, in order; ``progress`` is told ``"<label> on <cell>"``."""
+    """``evaluate_cell`` over ``cells``, in order; ``progress`` is told ``"<label> on <cell>"``.
+
+    With a ``runner`` (a Dask cluster) the cells are flown there in chunks by the controller of
+    ``ref`` instead, with bit-identical results.
+    """
+    if runner is not None:
+        if ref is None:
+            raise UsageError("a cluster run needs a controller reference the workers can rebuild")
+        return _evaluate_on_cluster(
+            runner, ref, spec, cells, n_faults, n_seeds, backend, salt, progress, label
+        )
     runs = []
     for cell in cells:
         progress.describe(f"{label} on {cell.label}" if label else cell.label)
@@ -124,9 +155,103 @@ def evaluate_cells(
     return runs
 
 
+def _evaluate_on_cluster(
+    runner: Runner,
+    ref: ControllerRef,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    n_faults: int | None,
+    n_seeds: int | None,
+    backend: str,
+    salt: bytes,
+    progress: Progress,
+    label: str,
+) -> list[CellRun]:
+    """Every cell split into chunks, all chunks mapped over the cluster at once, then each cell's
+    chunks concatenated in order and scored here."""
+    from scftc_cli.distributed.runner import CHUNK_EPISODES, ChunkTask, chunks, run_chunk
+
+    faults = spec.n_faults if n_faults is None else n_faults
+    seeds = spec.n_seeds if n_seeds is None else n_seeds
+    n = faults * seeds
+    tasks = [
+        ChunkTask(ref, spec.version, c.split, c.fault_class, c.sensor, faults, seeds, salt, backend, a, b)
+        for c in cells
+        for a, b in chunks(n, CHUNK_EPISODES)
+    ]
+    progress.describe(f"{label} on {len(cells)} cell(s), {len(tasks)} chunk(s) on the cluster")
+    outcomes = runner.map(run_chunk, tasks, progress, weight=lambda t: spec.steps * t.steps / n)
+    per_cell = len(tasks) // len(cells)
+    runs = []
+    for i, cell in enumerate(cells):
+        merged = EpisodeOutcomes.concat(outcomes[i * per_cell : (i + 1) * per_cell])
+        result = score_cell(merged, cell.split, cell.fault_class, cell.sensor, spec.confidence)
+        runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt)))
+    return runs
+
+
 def planned_steps(spec: BenchmarkSpec, cells: list[Cell]) -> int:
     """Simulation steps ``evaluate_cells`` will take over ``cells`` (a progress bar's total)."""
     return len(cells) * spec.steps
+
+
+@dataclass(frozen=True)
+class ControllerChoice:
+    """A controller to fly: a built-in (optionally with parameters or weights from a file that
+    ``scftc train`` wrote) or a submitted file run locally.
+
+    Attributes:
+        name: shown in tables and records.
+        make: a fresh controller per cell.
+        ref: what a cluster's workers rebuild the controller from.
+        artifacts: files whose sha256 goes into the result's provenance.
+        source_file: the submitted file, for a local run.
+    """
+
+    name: str
+    privileged: bool
+    make: ControllerFactory
+    ref: ControllerRef
+    artifacts: tuple[Path, ...] = ()
+    source_file: Path | None = None
+
+
+def choose_controller(
+    spec: BenchmarkSpec, name: str | None = None, file: Path | None = None, params: Path | None = None
+) -> ControllerChoice:
+    """Resolve ``--controller NAME [--params FILE]`` or ``--controller-file FILE``.
+
+    Raises:
+        UsageError: neither or both given, or ``params`` with a file or a controller without
+            parameters (the message says what to pass).
+    """
+    if (name is None) == (file is None):
+        raise UsageError("give exactly one of --controller NAME and --controller-file FILE.py")
+    if file is not None:
+        if params is not None:
+            raise UsageError("--params applies to a built-in --controller, not to a --controller-file")
+        from scftc_cli.submission.local import local_controller
+
+        sub, make_local = local_controller(file)
+        flies = sub.manifest.benchmark
+        if flies != spec.version:
+            raise UsageError(f"{file.name} flies {flies}, not {spec.version}; pass --benchmark {flies}")
+        local = SubmissionRef(sub.path.name, sub.source, local=True)
+        return ControllerChoice(sub.manifest.name, False, lambda _cell: make_local(), local, (), sub.path)
+    if name is None:  # unreachable (checked above); narrows the type
+        raise UsageError("give --controller NAME")
+    entry = controller_spec(name, spec.version)
+    if params is None:
+        plain = BuiltinRef(name, spec.version)
+        return ControllerChoice(
+            name, entry.privileged, lambda _cell: entry.make(), plain, tuple(entry.artifact_paths())
+        )
+    from scftc_cli.baselines.params import controller_from_artifact
+
+    make = controller_from_artifact(entry, params)
+    make()  # fail now, with the file's own message, rather than in the first cell
+    ref = BuiltinRef(name, spec.version, (params.name, params.read_bytes()))
+    return ControllerChoice(f"{name} ({params.name})", entry.privileged, lambda _cell: make(), ref, (params,))
 
 
 def eval_result(

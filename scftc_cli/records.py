@@ -157,3 +157,67 @@ def collect_provenance(
         },
         controller_file_sha256=sha(controller_file) if controller_file is not None else None,
     )
+
+
+def episode_rows(controller: str, benchmark: str, draw: str, runs: list) -> list[dict]:
+    """One row per episode of ``runs`` (``evaluate.CellRun``): the cell, the episode's fault and
+    initial state, its gate outcomes, final error and settling time."""
+    rows = []
+    for run in runs:
+        o, episodes = run.outcomes, run.drawn()
+        for i in range(o.n):
+            settling = float(o.settling_time_s[i])
+            rows.append(
+                {
+                    "benchmark_version": benchmark,
+                    "controller": controller,
+                    "draw": draw,
+                    "split": run.cell.split,
+                    "class": run.cell.fault_class,
+                    "sensor": run.cell.sensor,
+                    "episode": i,
+                    **episodes.describe(i),
+                    "settled": bool(o.settled[i]),
+                    "operational": bool(o.operational[i]),
+                    "touch_once": bool(o.touch_once[i]),
+                    "final_error_deg": float(o.final_error_deg[i]),
+                    "settling_time_s": None if settling != settling else settling,
+                }
+            )
+    return rows
+
+
+def write_episode_log(path: Path, rows: list[dict]) -> Path:
+    """Write ``rows`` as JSON Lines (``.jsonl``) or CSV (``.csv``, list values as JSON), atomically:
+    a crash leaves the old file or none, never half of one."""
+    import csv
+    import io
+    import json
+    import os
+    import tempfile
+
+    path = Path(path)
+    if path.suffix not in (".jsonl", ".csv"):
+        from scftc_cli.errors import UsageError
+
+        raise UsageError(f"--log-episodes {path}: name a .jsonl or .csv file")
+    if path.suffix == ".jsonl":
+        text = "".join(json.dumps(r) + "\n" for r in rows)
+    else:
+        buf = io.StringIO()
+        columns = list(dict.fromkeys(k for r in rows for k in r))
+        writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        for r in rows:
+            writer.writerow({k: json.dumps(v) if isinstance(v, list) else v for k, v in r.items()})
+        text = buf.getvalue()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -80,6 +80,8 @@ class SignVote:
 class ClassicalAdaptive(Controller):
     """Sign vote + normalized-gradient magnitude/bias law feeding the analytic law."""
 
+    params_type = AdaptiveParams
+
     def __init__(self, params: AdaptiveParams | None = None) -> None:
         self.params = params or AdaptiveParams(**load_params(NAME).params)
 

@@ -36,7 +36,9 @@ class _Recorder(Controller):
         return command
 
 
-def _fly(controller: Controller, benchmark: str, fault_class: str, steps: int) -> np.ndarray:
+def fly_prefix(controller: Controller, benchmark: str, fault_class: str, steps: int) -> np.ndarray:
+    """The commands ``(n, steps, action_dim)`` ``controller`` gives over the first ``steps`` steps
+    of 6 pinned train episodes of ``fault_class`` (3 faults x 2 initial conditions)."""
     episodes = testbed(benchmark).draw("train", fault_class, n_faults=3, n_seeds=2)
     recorder = _Recorder(controller)
     rollout(recorder, episodes, steps=steps)
@@ -53,7 +55,7 @@ def check_controller(
     ``benchmark``: wrong shape or dtype, non-finite or out-of-range commands, or commands that
     differ between two flights of the same episodes."""
     for fault_class in classes:
-        first = _fly(controller, benchmark, fault_class, steps)
-        again = _fly(controller, benchmark, fault_class, steps)
+        first = fly_prefix(controller, benchmark, fault_class, steps)
+        again = fly_prefix(controller, benchmark, fault_class, steps)
         if not np.array_equal(first, again):
             raise AssertionError(f"{type(controller).__name__} is not deterministic after reset()")

@@ -116,6 +116,8 @@ class HistoryStack:
 class ICLAdaptive(Controller):
     """ICL estimate of ``(theta, beta)`` per axis feeding the analytic law."""
 
+    params_type = ICLParams
+
     def __init__(self, params: ICLParams | None = None) -> None:
         self.params = params or ICLParams(**load_params(NAME).params)
 

@@ -62,6 +62,8 @@ def nussbaum_gain(zeta: np.ndarray, zeta0: float) -> np.ndarray:
 class Nussbaum(Controller):
     """Per-axis ``a = -N(zeta) (s + d_hat)`` with ``zeta`` and ``d_hat`` adapted from ``s``."""
 
+    params_type = NussbaumParams
+
     def __init__(self, params: NussbaumParams | None = None) -> None:
         self.params = params or NussbaumParams(**load_params(NAME).params)
 

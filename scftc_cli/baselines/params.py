@@ -6,14 +6,20 @@ A params file is small, versioned and committed; ``scftc eval`` reads it and nev
 from __future__ import annotations
 
 import datetime as dt
+import inspect
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 from pydantic import BaseModel
 
 from scftc_cli import __version__
-from scftc_cli.errors import ScftcError
+from scftc_cli.errors import ScftcError, UsageError
+
+if TYPE_CHECKING:
+    from scftc_cli.protocol import Controller
+    from scftc_cli.registry import ControllerSpec
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 PARAMS_DIR = PACKAGE_DIR / "params"
@@ -63,3 +69,31 @@ def load_params(controller: str, path: Path | None = None) -> ParamsFile:
     if not path.exists():
         raise ScftcError(f"no tuned parameters at {path}; run `scftc train --controller {controller}`")
     return ParamsFile.model_validate(yaml.safe_load(path.read_text()))
+
+
+def controller_from_artifact(entry: ControllerSpec, path: Path) -> Callable[[], Controller]:
+    """A factory of built-in ``entry`` built from an artifact ``scftc train`` wrote: a params file
+    (``.yaml``) for a tuned controller, a weights file for a learned one.
+
+    Raises:
+        UsageError: the file is missing, belongs to another controller, or the controller takes no
+            such artifact.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UsageError(f"no such file: {path}; pass the file `scftc train --out` wrote")
+    cls: Any = entry.load()  # a concrete controller class, whose constructor takes its artifact
+    if path.suffix in (".yaml", ".yml"):
+        params_type = getattr(cls, "params_type", None)
+        if params_type is None:
+            raise UsageError(
+                f"`{entry.name}` has no tuned parameters; --params takes a params file of a tuned controller"
+            )
+        doc = load_params(entry.name, path)
+        if doc.controller != entry.name:
+            raise UsageError(f"{path} holds parameters of `{doc.controller}`, not `{entry.name}`")
+        params = params_type(**doc.params)
+        return lambda: cls(params)
+    if "path" not in inspect.signature(cls).parameters:
+        raise UsageError(f"`{entry.name}` loads no weights; --params takes a .yaml params file for it")
+    return lambda: cls(path=path)

@@ -45,6 +45,8 @@ class PIDParams:
 class PID(Controller):
     """Inertia-scaled MRP PID with anti-windup (fault-unaware)."""
 
+    params_type = PIDParams
+
     def __init__(self, params: PIDParams | None = None) -> None:
         self.params = params or PIDParams(**load_params(NAME).params)
 

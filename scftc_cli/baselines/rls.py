@@ -101,6 +101,8 @@ class AxisRLS:
 class RLSDob(Controller):
     """Estimate-then-control: per-axis RLS of ``(theta, beta)``, latched, then the observer."""
 
+    params_type = RLSParams
+
     def __init__(self, params: RLSParams | None = None) -> None:
         self.params = params or RLSParams(**load_params(NAME).params)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import typer
 
 from scftc_cli import __version__
+from scftc_cli.commands.compare import compare_command
 from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
 from scftc_cli.commands.leaderboard import leaderboard_app, schemas_command
@@ -22,6 +23,7 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    rich_markup_mode=None,  # plain help: flags shown as flags, brackets as written
 )
 
 
@@ -42,6 +44,7 @@ def _root(
 
 app.command("eval")(eval_command)
 app.command("list")(list_command)
+app.command("compare")(compare_command)
 app.command("train")(train_command)
 app.command("crosscheck")(crosscheck_command)
 app.command("reproduce")(reproduce_command)
@@ -51,4 +54,12 @@ app.command("schemas")(schemas_command)
 
 
 def main() -> None:
+    """The ``scftc`` entry point. SIGTERM unwinds like Ctrl-C (every ``with`` block cleans up: a
+    sandbox is stopped, a temporary file removed) instead of killing the process mid-write."""
+    import signal
+
+    def terminate(signum: int, _frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    signal.signal(signal.SIGTERM, terminate)
     app()

@@ -44,6 +44,79 @@ BoardOption = Annotated[
     ),
 ]
 DEFAULT = DEFAULT_BENCHMARK
+ControllerOption = Annotated[
+    str | None,
+    typer.Option("--controller", help="A built-in controller (`scftc list`).", show_default=False),
+]
+ControllerFileOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--controller-file",
+        help="Your own controller: a .py file with a SUBMISSION manifest, run locally (development).",
+        show_default=False,
+    ),
+]
+ParamsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--params",
+        help="Parameters or weights `scftc train --out` wrote, for the built-in --controller.",
+        show_default=False,
+    ),
+]
+LogEpisodesOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--log-episodes",
+        help="Also write one row per episode (fault, initial state, gates, errors) to this .jsonl or .csv.",
+        show_default=False,
+    ),
+]
+
+
+WorkersOption = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        help="Spread the work over a local Dask cluster of this many worker processes (scftc[dask]).",
+        min=1,
+        show_default=False,
+    ),
+]
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="Spread the work over the Dask cluster at this address (also SCFTC_SCHEDULER).",
+        show_default=False,
+    ),
+]
+
+
+class CellsOptions:
+    """The options that choose cells, shared by ``eval`` and ``compare``."""
+
+    fault_class = Annotated[
+        str | None,
+        typer.Option(
+            "--class",
+            help="Actuator fault class (`scftc list`) or all [default: all; the sensor faults' base class "
+            "with --sensor].",
+            show_default=False,
+        ),
+    ]
+    sensor = Annotated[
+        str | None,
+        typer.Option(help="Sensor fault on top of the base class's faults, or all.", show_default=False),
+    ]
+    split = Annotated[str, typer.Option(help="test (held out) or train (the only split to develop on).")]
+    n_faults = Annotated[
+        int | None, typer.Option(help="Faults per cell [default: 50].", min=1, show_default=False)
+    ]
+    n_seeds = Annotated[
+        int | None,
+        typer.Option(help="Initial conditions per fault [default: 10].", min=1, show_default=False),
+    ]
 
 
 def choice(value: Any) -> str:
@@ -52,8 +125,18 @@ def choice(value: Any) -> str:
 
 
 def error_line(message: str) -> None:
-    """One ``error: ...`` line on stderr (markup-safe, no blank line before it)."""
-    stderr.print(f"[red]error:[/red] {escape(message)}", highlight=False, soft_wrap=True)
+    """One ``error: ...`` line on stderr: markup-safe, control characters and escape sequences
+    (which a submitted file name or manifest could carry) stripped, no blank line before it."""
+    from scftc_cli.submission.wire import terminal_safe
+
+    stderr.print(f"[red]error:[/red] {escape(terminal_safe(message))}", highlight=False, soft_wrap=True)
+
+
+def note_line(message: str) -> None:
+    """One ``note: ...`` line on stderr (sanitized like ``error_line``)."""
+    from scftc_cli.submission.wire import terminal_safe
+
+    stderr.print(f"note: {escape(terminal_safe(message))}", highlight=False, soft_wrap=True)
 
 
 def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -84,7 +167,7 @@ def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
 @contextmanager
 def progress_bar(description: str, total: float | None = None, *, steps: bool = True) -> Iterator[Progress]:
     """A rich progress bar on stderr (transient: it disappears when done); yields the ``Progress``
-    the library reports to.
+    the library reports to. Where stderr is not a terminal (a pipe, a log, CI) nothing is drawn.
 
     Args:
         total: units of work (simulated steps unless ``steps`` is false, e.g. a training fraction).
@@ -98,7 +181,12 @@ def progress_bar(description: str, total: float | None = None, *, steps: bool = 
     )
     from rich.progress import Progress as RichProgress
 
+    from scftc_cli.protocol import NO_PROGRESS
     from scftc_cli.protocol import Progress as LibraryProgress
+
+    if not stderr.is_terminal:
+        yield NO_PROGRESS
+        return
 
     class BarProgress(LibraryProgress):
         def __init__(self, bar: RichProgress, task: Any) -> None:

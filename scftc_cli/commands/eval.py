@@ -1,14 +1,29 @@
-"""``scftc eval``: score one controller on held-out (or train) cells."""
+"""``scftc eval``: score one controller (a built-in, or your own file) on held-out or train cells."""
 
 from __future__ import annotations
 
 import json
 from enum import StrEnum
+from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import DEFAULT, BenchmarkOption, choice, exits_cleanly, progress_bar
+from scftc_cli.commands.common import (
+    DEFAULT,
+    BenchmarkOption,
+    CellsOptions,
+    ControllerFileOption,
+    ControllerOption,
+    LogEpisodesOption,
+    ParamsOption,
+    SchedulerOption,
+    WorkersOption,
+    exits_cleanly,
+    note_line,
+    progress_bar,
+    stderr,
+)
 from scftc_cli.sim import BACKENDS
 
 
@@ -20,70 +35,72 @@ class OutputFormat(StrEnum):
 
 @exits_cleanly
 def eval_command(
-    controller: Annotated[str, typer.Option(help="Registered controller name (see `scftc list`).")],
+    controller: ControllerOption = None,
+    controller_file: ControllerFileOption = None,
+    params: ParamsOption = None,
     benchmark: BenchmarkOption = DEFAULT,
-    fault_class: Annotated[
-        str | None,
-        typer.Option(
-            "--class",
-            help="Actuator fault class (`scftc list` names them) or all [default: all; the sensor "
-            "faults' base class with --sensor].",
-            show_default=False,
-        ),
-    ] = None,
-    sensor: Annotated[
-        str | None,
-        typer.Option(help="Sensor fault on top of the base class's faults, or all.", show_default=False),
-    ] = None,
-    split: Annotated[str, typer.Option(help="test (held out, scored) or train.")] = "test",
-    n_faults: Annotated[
-        int | None,
-        typer.Option(help="Faults per cell [default: the benchmark's, 50].", min=1, show_default=False),
-    ] = None,
-    n_seeds: Annotated[
-        int | None,
-        typer.Option(
-            help="Initial conditions per fault [default: the benchmark's, 10].", min=1, show_default=False
-        ),
-    ] = None,
+    fault_class: CellsOptions.fault_class = None,
+    sensor: CellsOptions.sensor = None,
+    split: CellsOptions.split = "test",
+    n_faults: CellsOptions.n_faults = None,
+    n_seeds: CellsOptions.n_seeds = None,
     backend: Annotated[str, typer.Option(help=f"Simulator: {', '.join(BACKENDS)}.")] = "numpy",
     output_format: Annotated[
         OutputFormat, typer.Option("--format", help="Output format.")
     ] = OutputFormat.table,
+    log_episodes: LogEpisodesOption = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
-    """Score a controller on the settled, operational and touch-once gates (true state).
+    """Score a controller on the settled, operational and touch-once gates (on the true state).
 
     Each cell holds n = n_faults x n_seeds pinned episodes; rates come with Wilson 95 % intervals.
+    Develop on --split train; the held-out test split is for checking, never for tuning.
     """
-    from scftc_cli.evaluate import eval_result, evaluate_cells, planned_steps, select_cells
-    from scftc_cli.records import collect_provenance
-    from scftc_cli.registry import controller_spec
+    from scftc_cli.distributed.runner import cluster
+    from scftc_cli.evaluate import choose_controller, eval_result, evaluate_cells, planned_steps, select_cells
+    from scftc_cli.records import collect_provenance, episode_rows, write_episode_log
     from scftc_cli.render import eval_markdown, eval_table, print_table
     from scftc_cli.sim.testbed import check_backend
     from scftc_cli.spec import get_spec
+    from scftc_cli.submission.local import NOTICE
 
     spec = get_spec(benchmark)
-    entry = controller_spec(controller, spec.version)
+    choice = choose_controller(spec, controller, controller_file, params)
+    if controller_file is not None:
+        note_line(f"{controller_file.name} {NOTICE}")
     check_backend(backend)
     cells = select_cells(spec, split, fault_class, sensor)
-    with progress_bar(f"{controller} on {len(cells)} cell(s)", planned_steps(spec, cells)) as progress:
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar(f"{choice.name} on {len(cells)} cell(s)", planned_steps(spec, cells)) as progress,
+    ):
         runs = evaluate_cells(
-            lambda _cell: entry.make(),
+            choice.make,
             spec,
             cells,
             n_faults=n_faults,
             n_seeds=n_seeds,
             backend=backend,
             progress=progress,
-            label=controller,
+            label=choice.name,
+            runner=runner,
+            ref=choice.ref,
         )
-    result = eval_result(controller, entry.privileged, spec, runs, backend).model_copy(
-        update={"provenance": collect_provenance(entry.artifact_paths())}
+    provenance = collect_provenance(choice.artifacts, choice.source_file)
+    result = eval_result(choice.name, choice.privileged, spec, runs, backend).model_copy(
+        update={"provenance": provenance}
     )
-    fmt = choice(output_format)
+    if log_episodes is not None:
+        write_episode_log(log_episodes, episode_rows(choice.name, spec.version, "public", runs))
+        stderr.print(f"wrote {log_episodes}", highlight=False)
+    fmt = OutputFormat(output_format).value
     if fmt == "json":
         typer.echo(json.dumps(result.dump(), indent=2))
     elif fmt == "markdown":
         typer.echo(eval_markdown(result))
     else:
         print_table(eval_table(result))
+
+
+_ = Path  # typer resolves the Path annotations of the shared options at runtime

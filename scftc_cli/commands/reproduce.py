@@ -8,7 +8,16 @@ from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import DEFAULT, BenchmarkOption, exits_cleanly, progress_bar, stderr
+from scftc_cli.commands.common import (
+    DEFAULT,
+    BenchmarkOption,
+    LogEpisodesOption,
+    SchedulerOption,
+    WorkersOption,
+    exits_cleanly,
+    progress_bar,
+    stderr,
+)
 
 
 @exits_cleanly
@@ -25,21 +34,33 @@ def reproduce_command(
         int | None,
         typer.Option(help="Initial conditions per fault [default: 10].", min=1, show_default=False),
     ] = None,
+    log_episodes: LogEpisodesOption = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Run the whole battery, the sensor table and the example trajectories; write battery.md/json,
     sensor.md/json and the figures (PNG + SVG) into OUT. No training: uses the committed artifacts."""
+    from scftc_cli.distributed.runner import cluster
+    from scftc_cli.records import episode_rows, write_episode_log
     from scftc_cli.spec import get_spec
     from scftc_cli.study.run import planned_steps, run_study
     from scftc_cli.study.tables import write_tables
 
     spec = get_spec(benchmark)
     start = time.perf_counter()
-    with progress_bar("reproduce", planned_steps(spec)) as progress:
-        study = run_study(spec, n_faults, n_seeds, progress=progress)
+    with cluster(workers, scheduler) as runner, progress_bar("reproduce", planned_steps(spec)) as progress:
+        study = run_study(spec, n_faults, n_seeds, progress=progress, runner=runner)
         progress.describe("writing tables and figures")
         from scftc_cli.study.figures import write_figures  # matplotlib only when a figure is drawn
 
         paths = write_tables(study, out) + write_figures(study, out)
+        if log_episodes is not None:
+            rows = [
+                row
+                for name, runs in study.runs.items()
+                for row in episode_rows(name, spec.version, "public", runs)
+            ]
+            paths.append(write_episode_log(log_episodes, rows))
     for path in paths:
         stderr.print(f"wrote {path}", highlight=False)
     stderr.print(f"reproduce: {len(paths)} files in {time.perf_counter() - start:.1f} s", highlight=False)
