@@ -6,8 +6,9 @@ episodes that pass the settled gate and ``tie`` in ``[0, 0.5 / n)`` is a tie-bre
 log dwell error, too small to outweigh a single episode: it only ranks parameter sets that settle
 the same number of episodes (the train split is easy enough that many do), preferring the one that
 settles deeper. The tuning episodes are the first ``n_faults x n_seeds`` pinned episodes of the
-train cells ``sign``, ``gain`` and ``gain_bias`` flown as one batch; ``loss`` is left out because
-no controller of the battery settles a dead axis and it carries no signal.
+train cells of the spec's ``classes`` flown as one batch: ``sign``, ``gain`` and ``gain_bias`` by
+default; ``loss`` is left out because no smooth law of the battery settles a dead axis and it
+carries no signal, except for ``rls_plan``, whose dead-axis plan is tuned on it.
 
 Budgets: ``quick`` (CI smoke test, well under 2 minutes) and ``full`` (the committed params
 files; 20 faults x 3 seeds per class, minutes per controller). After the search, the winner is
@@ -36,6 +37,8 @@ from scftc_cli.baselines.nussbaum import Nussbaum, NussbaumParams
 from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.pid import NAME as PID_NAME
 from scftc_cli.baselines.pid import PID, PIDParams
+from scftc_cli.baselines.plan import NAME as PLAN
+from scftc_cli.baselines.plan import PlanParams, RLSPlan
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
 from scftc_cli.protocol import Controller
@@ -80,6 +83,7 @@ class TuneSpec:
     params_cls: type
     factory: Callable[[Any], Controller]
     space: tuple[Dim, ...]
+    classes: tuple[str, ...] = TUNE_CLASSES  # the train cells flown by the objective
 
     def params(self, x: np.ndarray) -> Any:
         """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
@@ -180,6 +184,22 @@ SPECS: dict[str, TuneSpec] = {
             Dim("observer_gain", 0.01, 0.5, log=True),
         ),
     ),
+    # identification keeps rls_dob's tuned values; the plan's physics (authorities, slew times,
+    # the Euler sequence) comes from the identified theta, never from tuned durations
+    PLAN: TuneSpec(
+        PLAN,
+        PlanParams,
+        RLSPlan,
+        (
+            Dim("eta", 0.6, 0.97),
+            Dim("rho", 0.0, 0.6),
+            Dim("tol_angle", 2e-5, 5e-4, log=True),
+            Dim("tol_rate", 5e-6, 1e-4, log=True),
+            Dim("tol_dead_rate", 5e-7, 1e-5, log=True),
+            Dim("replan_deg", 0.03, 0.15),
+        ),
+        classes=("sign", "gain", "gain_bias", "loss"),
+    ),
 }
 
 
@@ -204,11 +224,31 @@ def train_scores(spec: TuneSpec, params: Any, n_faults: int, n_seeds: int) -> di
     return train_settled_rates(lambda: spec.factory(params), V1.fault_classes, n_faults, n_seeds)
 
 
+@dataclass(frozen=True)
+class Objective:
+    """``loss(x)`` of one tuning run, picklable so that a Dask cluster's workers can evaluate it
+    (each draws its pinned tuning episodes once, from the cache)."""
+
+    controller: str
+    n_faults: int
+    n_seeds: int
+
+    def __call__(self, x: np.ndarray) -> float:
+        spec = SPECS[self.controller]
+        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes)
+        return objective(spec.factory(spec.params(x)), episodes)[0]
+
+
 def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
-    """Search ``spec``'s box with differential evolution on train episodes; save the winner."""
+    """Search ``spec``'s box with differential evolution on train episodes; save the winner.
+
+    With ``request.runner`` (a Dask cluster) each generation's candidates are evaluated there in
+    parallel; that needs scipy's deferred update (``updating="deferred"``), so the result equals the
+    serial run with the deferred update, not the immediate one the committed parameters used.
+    """
     budget = BUDGETS[request.budget]
     started = time.perf_counter()
-    episodes = tuning_episodes(budget.n_faults, budget.n_seeds)
+    episodes = tuning_episodes(budget.n_faults, budget.n_seeds, spec.classes)
     dims = len(spec.space)
     expected = (budget.maxiter + 1) * budget.popsize * dims
     calls = {"n": 0, "best": -np.inf}
@@ -222,8 +262,26 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
         )
         return value
 
+    generations = {"n": 0}
+
+    def on_generation(intermediate_result: Any) -> None:
+        generations["n"] += 1
+        calls["n"] = (generations["n"] + 1) * budget.popsize * dims
+        request.on_progress(
+            min(generations["n"] / (budget.maxiter + 1), 0.99),
+            f"generation {generations['n']}/{budget.maxiter} on the cluster, "
+            f"best loss {intermediate_result.fun:.4f}",
+        )
+
+    options: dict[str, Any] = {}
+    if request.runner is not None:
+        options = {
+            "workers": request.runner,
+            "updating": "deferred",
+            "callback": on_generation,
+        }
     result = differential_evolution(
-        loss,
+        loss if request.runner is None else Objective(spec.controller, budget.n_faults, budget.n_seeds),
         bounds=[d.bounds() for d in spec.space],
         seed=request.seed,
         popsize=budget.popsize,
@@ -233,15 +291,16 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
         polish=False,
         x0=spec.start(),
         integrality=[d.integer for d in spec.space],
+        **options,
     )
     best = spec.params(result.x)
     request.on_progress(0.99, "scoring the winner on the train split")
     scores = train_scores(spec, best, budget.final_faults, budget.final_seeds)
-    train_rate = float(np.mean([scores[c] for c in TUNE_CLASSES]))
+    train_rate = float(np.mean([scores[c] for c in spec.classes]))
     wall_s = time.perf_counter() - started
     notes = (
         f"differential_evolution(seed={request.seed}, popsize={budget.popsize}, maxiter={budget.maxiter}) "
-        f"on {TUNE_SPLIT} classes {'+'.join(TUNE_CLASSES)} x {budget.n_faults} faults x {budget.n_seeds} "
+        f"on {TUNE_SPLIT} classes {'+'.join(spec.classes)} x {budget.n_faults} faults x {budget.n_seeds} "
         f"seeds; {calls['n']} evaluations, best tuning-set settled rate {-result.fun:.3f} (incl. tie-break); "
         f"train_settled_rate = mean over those classes on {budget.final_faults} x {budget.final_seeds}: "
         + ", ".join(f"{c} {v:.3f}" for c, v in scores.items())
@@ -279,3 +338,7 @@ def tune_nussbaum(request: TrainRequest) -> TrainReport:
 
 def tune_rls_dob(request: TrainRequest) -> TrainReport:
     return tune(SPECS[RLS], request)
+
+
+def tune_rls_plan(request: TrainRequest) -> TrainReport:
+    return tune(SPECS[PLAN], request)
