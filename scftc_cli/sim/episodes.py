@@ -87,6 +87,26 @@ class Episodes:
         label = "+".join(dict.fromkeys(p.fault_class for p in parts))
         return dataclasses.replace(joined, fault_class=label)
 
+    def describe(self, i: int) -> dict[str, Any]:
+        """Episode ``i``'s fault and initial state as plain JSON values, nested names joined with
+        dots (``fault.gain``): what a per-episode log records."""
+        out: dict[str, Any] = {}
+
+        def walk(prefix: str, value: Any) -> None:
+            if dataclasses.is_dataclass(value) and not isinstance(value, type):
+                for f in dataclasses.fields(value):
+                    walk(f"{prefix}{f.name}.", getattr(value, f.name))
+            elif isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == self.n:
+                item = value[i]
+                out[prefix.rstrip(".")] = item.tolist() if isinstance(item, np.ndarray) else item.item()
+            elif value is None and prefix:
+                out[prefix.rstrip(".")] = None
+
+        for f in dataclasses.fields(self):
+            if f.name not in ("benchmark", "split", "fault_class", "sensor"):
+                walk(f"{f.name}.", getattr(self, f.name))
+        return out
+
     def readonly(self) -> Self:
         """Mark every batch array read-only (cached draws are shared between callers)."""
 

@@ -26,12 +26,14 @@ class RigidBodyTestbed(Testbed):
         n_faults: int | None = None,
         n_seeds: int | None = None,
         salt: bytes = b"",
+        start: int = 0,
+        stop: int | None = None,
     ) -> RigidEpisodes:
         n_faults = self.spec.n_faults if n_faults is None else n_faults
         n_seeds = self.spec.n_seeds if n_seeds is None else n_seeds
         if n_faults < 1 or n_seeds < 1:
             raise UsageError("--n-faults and --n-seeds must be at least 1")
-        return draw_episodes(split, fault_class, sensor, n_faults, n_seeds, salt)
+        return draw_episodes(split, fault_class, sensor, n_faults, n_seeds, salt, start, stop)
 
     def plant(self, episodes: RigidEpisodes, backend: str = "numpy") -> Plant:  # type: ignore[override]
         check_backend(backend)

@@ -118,48 +118,57 @@ def draw_episodes(
     n_faults: int = V1.n_faults,
     n_seeds: int = V1.n_seeds,
     salt: bytes = b"",
+    start: int = 0,
+    stop: int | None = None,
 ) -> RigidEpisodes:
     """The pinned (or, with ``salt``, sealed) episodes of a cell: ``n_faults`` faults x
-    ``n_seeds`` initial conditions, fault-major.
+    ``n_seeds`` initial conditions, fault-major; with ``start``/``stop``, only episodes
+    ``start..stop-1`` of them, drawn without drawing the others (a cluster's chunk of a large cell).
 
-    Sensor faults sit on top of the split's ``sign`` faults, with the very same faults and initial
-    conditions as the ``sign`` cell, so the two cells pair episode by episode. A pure function of
-    its arguments, so it is cached (every controller of a battery meets the same cells); the
-    arrays of the returned episodes are read-only (shared between callers).
+    Every episode comes from its own keyed streams, so a slice is exactly the same numbers as that
+    slice of the whole cell. Sensor faults sit on top of the split's ``sign`` faults, with the very
+    same faults and initial conditions as the ``sign`` cell, so the two cells pair episode by
+    episode. A pure function of its arguments, so it is cached (every controller of a battery meets
+    the same cells); the arrays of the returned episodes are read-only (shared between callers).
     """
     spec = V1
     check_cell(spec, split, fault_class, sensor)
+    n = n_faults * n_seeds
+    stop = n if stop is None else stop
+    if not 0 <= start < stop <= n:
+        raise UsageError(f"episodes {start}..{stop} are not inside a cell of {n}")
     key = (split, fault_class)
-    gains, biases, scales = [], [], []
-    for i in range(n_faults):
-        g, b, f = sample_fault(
+    first_fault, last_fault = start // n_seeds, (stop - 1) // n_seeds
+    faults = {
+        i: sample_fault(
             spec.splits[split], fault_class, generator(spec.version, *key, index=(0, i), salt=salt)
         )
-        gains.append(g)
-        biases.append(b)
-        scales.append(f)
-    n = n_faults * n_seeds
-    sigma0, omega0, bias_axis = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    for i in range(n_faults):
-        for j in range(n_seeds):
-            e = i * n_seeds + j
-            rng = generator(spec.version, *key, index=(1, i, j), salt=salt)
-            (sigma0[e],), (omega0[e],) = sample_initial_state(spec.plant, rng, 1)
-            if sensor is not None:
-                v = generator(spec.version, *key, "attitude_bias", index=(i, j), salt=salt).standard_normal(3)
-                bias_axis[e] = v / unit_norm(v)
+        for i in range(first_fault, last_fault + 1)
+    }
+    m = stop - start
+    gain, bias, scale = np.empty((m, 3)), np.empty((m, 3)), np.empty(m)
+    sigma0, omega0, bias_axis = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+    fault_index, seed_index = np.empty(m, dtype=int), np.empty(m, dtype=int)
+    for row, e in enumerate(range(start, stop)):
+        i, j = divmod(e, n_seeds)
+        gain[row], bias[row], scale[row] = faults[i]
+        fault_index[row], seed_index[row] = i, j
+        rng = generator(spec.version, *key, index=(1, i, j), salt=salt)
+        (sigma0[row],), (omega0[row],) = sample_initial_state(spec.plant, rng, 1)
+        if sensor is not None:
+            v = generator(spec.version, *key, "attitude_bias", index=(i, j), salt=salt).standard_normal(3)
+            bias_axis[row] = v / unit_norm(v)
     sensor_bias = None
     if sensor is not None and sensor.startswith("bias_"):
         sensor_bias = from_axis_angle(bias_axis, np.radians(float(sensor.removeprefix("bias_"))))
-    rep = lambda x: np.repeat(np.asarray(x, dtype=float), n_seeds, axis=0)  # noqa: E731
     return RigidEpisodes(
         benchmark=spec.version,
         split=split,
         fault_class=fault_class,
         sensor=sensor,
-        fault_index=np.repeat(np.arange(n_faults), n_seeds),
-        seed_index=np.tile(np.arange(n_seeds), n_faults),
-        fault=ActuatorFault(rep(gains), rep(biases), rep(scales)),
+        fault_index=fault_index,
+        seed_index=seed_index,
+        fault=ActuatorFault(gain, bias, scale),
         sigma0=sigma0,
         omega0_rad_s=omega0,
         sensor_bias_mrp=sensor_bias,
@@ -190,6 +199,43 @@ def sample_episodes(
         fault_index=np.arange(n),
         seed_index=np.zeros(n, dtype=int),
         fault=ActuatorFault(gains, biases, scales),
+        sigma0=sigma0,
+        omega0_rad_s=omega0,
+    )
+
+
+def sample_episodes_batch(
+    rng: np.random.Generator, n: int, split: str, classes: tuple[str, ...], spec: BenchmarkSpec = V1
+) -> RigidEpisodes:
+    """``n`` fresh random episodes like ``sample_episodes`` (the same distribution, rule for rule),
+    drawn as whole arrays: ~100x faster for large batches (the vector environment's reset), but a
+    different random stream, so trainers that must regenerate committed weights bit for bit keep
+    ``sample_episodes``. ``tests/sim/v1/test_faults.py`` checks the two distributions agree."""
+    if not classes:
+        raise UsageError("name at least one fault class")
+    for c in classes:
+        check_cell(spec, split, c, None)
+    ranges = spec.splits[split]
+    cls = np.asarray(classes)[rng.integers(len(classes), size=n)]
+    scale = ranges.inertia_scale.sample(rng, n)
+    n_reversed = rng.choice(np.asarray(ranges.reversed_axes), size=n)
+    ranks = np.argsort(rng.random((n, 3)), axis=1).argsort(axis=1)  # a uniform random order of the axes
+    sign = np.where(ranks < n_reversed[:, None], -1.0, 1.0)  # the first n_reversed of that order flip
+    magnitude = np.where((cls == "sign")[:, None], 1.0, ranges.gain_magnitude.sample(rng, (n, 3)))
+    gain = sign * magnitude
+    bias = np.where((cls == "gain_bias")[:, None], ranges.bias.sample(rng, (n, 3)), 0.0)
+    dead = rng.integers(3, size=n)
+    loss = cls == "loss"
+    gain[np.flatnonzero(loss), dead[loss]] = 0.0
+    sigma0, omega0 = sample_initial_state(spec.plant, rng, n)
+    return RigidEpisodes(
+        benchmark=spec.version,
+        split=split,
+        fault_class="mixed",
+        sensor=None,
+        fault_index=np.arange(n),
+        seed_index=np.zeros(n, dtype=int),
+        fault=ActuatorFault(gain, bias, scale),
         sigma0=sigma0,
         omega0_rad_s=omega0,
     )

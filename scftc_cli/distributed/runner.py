@@ -1,0 +1,155 @@
+"""Chunks of cells, mapped over a Dask cluster.
+
+The unit of work is a slice of one cell's episodes (``ChunkTask``): a worker draws exactly that
+slice (every episode has its own keyed streams, so it equals that slice of the whole cell), flies
+the controller it rebuilds from a reference, and returns the per-episode outcomes. The parent
+concatenates the slices in order and scores the cell, so the result is bit-identical to the
+serial run whatever the number of workers or chunks, provided the controller treats the episodes
+of a batch independently (every built-in does; ``tests/distributed/`` checks it). A task is a pure
+function of its arguments: when a worker dies, Dask runs it again elsewhere and nothing changes.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from scftc_cli.distributed.refs import ControllerRef
+from scftc_cli.errors import ScftcError, UsageError
+from scftc_cli.protocol import NO_PROGRESS, Progress
+from scftc_cli.records import EpisodeOutcomes
+
+SCHEDULER_ENV = "SCFTC_SCHEDULER"
+CHUNK_EPISODES = 10_000  # bounds a worker's memory: ~10 k episodes' states and outcomes at a time
+INSTALL_HINT = "the cluster options need the optional extra: pip install 'scftc[dask]'"
+
+
+@dataclass(frozen=True)
+class ChunkTask:
+    """Episodes ``start..stop-1`` of one cell, flown by the controller of ``ref``."""
+
+    ref: ControllerRef
+    benchmark: str
+    split: str
+    fault_class: str
+    sensor: str | None
+    n_faults: int
+    n_seeds: int
+    salt: bytes
+    backend: str
+    start: int
+    stop: int
+
+    @property
+    def steps(self) -> int:
+        """Simulated steps of this chunk in units of whole-cell steps (a fraction of a cell)."""
+        return self.stop - self.start
+
+
+def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
+    """Fly one chunk (runs on a worker, or in process)."""
+    from scftc_cli.scoring import episode_outcomes
+    from scftc_cli.sim.rollout import rollout
+    from scftc_cli.sim.testbed import testbed
+
+    bed = testbed(task.benchmark)
+    episodes = bed.draw(
+        task.split,
+        task.fault_class,
+        task.sensor,
+        task.n_faults,
+        task.n_seeds,
+        task.salt,
+        task.start,
+        task.stop,
+    )
+    make, cleanup = task.ref.factory()
+    try:
+        return episode_outcomes(rollout(make(), episodes, backend=task.backend), bed.spec.gates)
+    finally:
+        cleanup()
+
+
+def chunks(n: int, size: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` ranges covering ``0..n-1`` in pieces of at most ``size``."""
+    return [(start, min(start + size, n)) for start in range(0, n, size)]
+
+
+class Runner:
+    """Maps functions over a Dask cluster (``client``), results in submission order."""
+
+    def __init__(self, client: Any, address: str) -> None:
+        self.client, self.address = client, address
+
+    def map(
+        self,
+        fn: Callable[[Any], Any],
+        items: Sequence[Any],
+        progress: Progress = NO_PROGRESS,
+        weight: Callable[[Any], float] = lambda _item: 1.0,
+    ) -> list[Any]:
+        """``[fn(item) for item in items]`` on the cluster; ``progress`` advances by each item's
+        ``weight`` as its result comes back."""
+        from distributed import as_completed
+
+        futures = self.client.map(fn, list(items), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for future in as_completed(futures):
+            progress.advance(weight(items[index[future.key]]))
+        return self.client.gather(futures)
+
+    def __call__(self, fn: Callable[[Any], Any], items: Any) -> list[Any]:
+        """The ``map``-like callable ``scipy.optimize.differential_evolution(workers=...)`` takes."""
+        return self.map(fn, list(items))
+
+
+def scheduler_address(scheduler: str | None) -> str | None:
+    """``--scheduler``, else ``SCFTC_SCHEDULER``, else ``None``."""
+    return scheduler or os.environ.get(SCHEDULER_ENV) or None
+
+
+@contextmanager
+def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterator[Runner | None]:
+    """A runner on a local cluster of ``workers`` processes, or on the cluster at ``scheduler``
+    (also ``SCFTC_SCHEDULER``); ``None`` (in process, no Dask) when neither is given.
+
+    Raises:
+        UsageError: both given, or a worker count below 1.
+        ScftcError: Dask is not installed, or the scheduler cannot be reached (the message names
+            the address).
+    """
+    address = scheduler_address(scheduler)
+    if workers is None and address is None:
+        yield None
+        return
+    if workers is not None and address is not None:
+        raise UsageError("give --workers (a local cluster) or --scheduler (an existing one), not both")
+    if workers is not None and workers < 1:
+        raise UsageError("--workers must be at least 1")
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise ScftcError(INSTALL_HINT) from None
+    if workers is not None:
+        with (
+            LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+            ) as local,
+            Client(local) as client,
+        ):
+            yield Runner(client, local.scheduler_address)
+        return
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError) as err:
+        raise ScftcError(
+            f"cannot reach the Dask scheduler at {address} ({type(err).__name__}); check the address "
+            f"(--scheduler or {SCHEDULER_ENV}) and that the scheduler is running"
+        ) from None
+    try:
+        yield Runner(client, str(address))
+    finally:
+        client.close()

@@ -1,0 +1,173 @@
+"""Evaluation, verification and tuning on a real Dask ``LocalCluster`` of two worker processes:
+results bit-identical to the serial run whatever the chunking, a killed worker changes nothing,
+an unreachable scheduler is one clear line."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+pytest.importorskip("distributed")
+
+import scftc_cli.board.ops as ops
+import scftc_cli.distributed.runner as runner_module
+from scftc_cli.board import store
+from scftc_cli.board.ops import Scoring, builtin_entry, verify
+from scftc_cli.commands.app import app
+from scftc_cli.distributed.refs import BuiltinRef
+from scftc_cli.distributed.runner import ChunkTask, Runner, cluster, run_chunk
+from scftc_cli.errors import ScftcError
+from scftc_cli.evaluate import Cell, evaluate_cells, select_cells
+from scftc_cli.registry import make_controller, registry
+from scftc_cli.spec import V1
+from scftc_cli.training import TrainRequest, tuning
+
+runner_cli = CliRunner()
+CELLS = select_cells(V1, "test", None, None) + [Cell("test", "sign", "bias_0.2")]
+
+
+@pytest.fixture(scope="module")
+def dask_runner():
+    with cluster(workers=2) as runner:
+        assert runner is not None
+        yield runner
+
+
+def _serial(name: str, n_faults: int, n_seeds: int):
+    return evaluate_cells(lambda _c: make_controller(name), V1, CELLS, n_faults=n_faults, n_seeds=n_seeds)
+
+
+def _same(a, b) -> None:
+    for x, y in zip(a, b, strict=True):
+        assert x.result == y.result
+        for field in ("settled", "operational", "touch_once", "final_error_deg", "settling_time_s"):
+            np.testing.assert_array_equal(
+                getattr(x.outcomes, field), getattr(y.outcomes, field), err_msg=field
+            )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["pd", "rls_dob", "rls_plan", "rma_dob"])
+def test_chunked_cluster_runs_are_bit_identical_to_the_serial_run(name, dask_runner, monkeypatch):
+    serial = _serial(name, 6, 4)
+    for chunk in (24, 7):  # one chunk per cell, then ragged chunks across fault boundaries
+        monkeypatch.setattr(runner_module, "CHUNK_EPISODES", chunk)
+        ref = BuiltinRef(name, V1.version)
+        runs = evaluate_cells(None, V1, CELLS, n_faults=6, n_seeds=4, runner=dask_runner, ref=ref)  # type: ignore[arg-type]
+        _same(runs, serial)
+
+
+def test_a_slice_of_a_cell_is_that_slice_of_the_whole_cell():
+    ref = BuiltinRef("bias_oracle", V1.version)
+    whole = run_chunk(ChunkTask(ref, V1.version, "test", "gain_bias", None, 5, 4, b"", "numpy", 0, 20))
+    part = run_chunk(ChunkTask(ref, V1.version, "test", "gain_bias", None, 5, 4, b"", "numpy", 7, 13))
+    np.testing.assert_array_equal(part.final_error_deg, whole.final_error_deg[7:13])
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_run_changes_nothing(dask_runner: Runner, monkeypatch):
+    monkeypatch.setattr(runner_module, "CHUNK_EPISODES", 5)
+    serial = _serial("rls_dob", 10, 5)
+    pids = list(dask_runner.client.run(os.getpid).values())
+    assert len(pids) == 2
+    killed = {"done": False}
+    real_map = Runner.map
+
+    def map_and_kill(self, fn, items, progress=None, weight=lambda _i: 1.0):
+        class KillAfterFirst:
+            def advance(self, amount: float = 1.0) -> None:
+                if not killed["done"]:
+                    os.kill(pids[0], signal.SIGKILL)  # a worker process dies while tasks run
+                    killed["done"] = True
+
+            def describe(self, text: str) -> None:
+                pass
+
+        return real_map(self, fn, items, KillAfterFirst(), weight)
+
+    monkeypatch.setattr(Runner, "map", map_and_kill)
+    runs = evaluate_cells(
+        None, V1, CELLS, n_faults=10, n_seeds=5, runner=dask_runner, ref=BuiltinRef("rls_dob", V1.version)
+    )  # type: ignore[arg-type]
+    assert killed["done"]
+    _same(runs, serial)
+    deadline = time.monotonic() + 60
+    while len(dask_runner.client.scheduler_info()["workers"]) < 2 and time.monotonic() < deadline:
+        time.sleep(0.5)  # the nanny restarts the worker for the next tests
+
+
+def test_an_unreachable_scheduler_is_one_line_naming_the_address():
+    with pytest.raises(ScftcError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
+        with cluster(scheduler="tcp://127.0.0.1:9"):
+            pass
+    result = runner_cli.invoke(app, ["eval", "--controller", "pd", "--scheduler", "tcp://127.0.0.1:9"])
+    assert result.exit_code == 1
+    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "tcp://127.0.0.1:9" in lines[0]
+
+
+def test_the_scheduler_can_come_from_the_environment(monkeypatch):
+    monkeypatch.setenv("SCFTC_SCHEDULER", "tcp://127.0.0.1:9")
+    result = runner_cli.invoke(app, ["eval", "--controller", "pd", "--n-faults", "1", "--n-seeds", "1"])
+    assert result.exit_code == 1 and "tcp://127.0.0.1:9" in result.stderr
+
+
+@pytest.mark.slow
+def test_eval_with_workers_prints_the_serial_cells():
+    args = [
+        "eval",
+        "--controller",
+        "pd",
+        "--class",
+        "all",
+        "--n-faults",
+        "5",
+        "--n-seeds",
+        "2",
+        "--format",
+        "json",
+    ]
+    serial = json.loads(runner_cli.invoke(app, args).stdout)["cells"]
+    result = runner_cli.invoke(app, [*args, "--workers", "2"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["cells"] == serial
+
+
+@pytest.mark.slow
+def test_verify_on_the_cluster_passes_and_catches_an_edit(dask_runner: Runner, tmp_path: Path, monkeypatch):
+    small = {n: registry()[n] for n in ("pd", "teacher")}
+    monkeypatch.setattr(ops, "registry", lambda _benchmark=None: small)
+    board = tmp_path / "leaderboard" / "scftc-v1.json"
+    entries = [builtin_entry(n, Scoring(V1, runner=dask_runner)) for n in small]
+    store.update_board(board, "scftc-v1", lambda b: b.model_copy(update={"entries": entries}))
+    assert verify(board, Scoring(V1, runner=dask_runner)).ok
+    assert verify(board, Scoring(V1)).ok  # scored on the cluster, verified in process: the same numbers
+    doc = json.loads(board.read_text())
+    doc["entries"][1]["sealed"][0]["final_error_deg"]["mean"] += 1.0
+    board.write_text(json.dumps(doc))
+    report = verify(board, Scoring(V1, runner=dask_runner))
+    assert list(report.problems) == ["teacher"]
+
+
+@pytest.mark.slow
+def test_tuning_on_the_cluster_equals_the_serial_deferred_run(dask_runner: Runner, tmp_path: Path):
+    class Serial:
+        def __call__(self, fn, items):
+            return list(map(fn, items))
+
+    out = {}
+    for label, runner in (("cluster", dask_runner), ("serial", Serial())):
+        request = TrainRequest(
+            controller="nussbaum", budget="quick", seed=2, out=tmp_path / f"{label}.yaml", runner=runner
+        )
+        tuning.tune(tuning.SPECS["nussbaum"], request)
+        out[label] = yaml.safe_load((tmp_path / f"{label}.yaml").read_text())["params"]
+    assert out["cluster"] == out["serial"]
