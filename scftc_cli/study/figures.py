@@ -15,7 +15,6 @@ matplotlib.use("Agg")  # files only, never a window; must precede pyplot
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
@@ -26,8 +25,7 @@ from scftc_cli.study.run import Study, Trajectory, sensor_bias_deg
 
 DPI = 150
 ORACLE_HATCH = "//"
-ORACLE_STYLES = ("--", ":", "-.")  # privileged oracles: broken lines, distinct so identical ones both show
-SOURCE_STUDY_GAIN_BIAS = 0.594  # rma_dob settled rate on gain_bias reported by the source study
+SOURCE_STUDY_GAIN_BIAS = 0.594  # RMA + observer on gain_bias in the source study (docs/study.md)
 ERROR_FLOOR_DEG = 1e-4  # lower end of the log error axis; below this the attitude is simply "there"
 
 
@@ -128,7 +126,8 @@ def bias_wall(results: list[EvalResult], colors: dict[str, tuple] | None = None)
                 [],
                 color="black",
                 linestyle=":",
-                label=f"source study rma_dob settled ({100 * SOURCE_STUDY_GAIN_BIAS:.1f} %)",
+                label=f"source study, RMA + observer, settled ({100 * SOURCE_STUDY_GAIN_BIAS:.1f} %; "
+                "docs/study.md)",
             ),
         ],
         loc="upper left",
@@ -140,17 +139,19 @@ def bias_wall(results: list[EvalResult], colors: dict[str, tuple] | None = None)
     return fig
 
 
-def settled_vs_touch(results: list[EvalResult], colors: dict[str, tuple] | None = None) -> Figure:
-    """Per controller, pooled over the four held-out classes: touch-once vs operational vs settled.
-
-    Touch-once counts an episode that merely passed through the tolerance; the drop to settled is
-    what a transient-minimum metric would overstate.
-    """
+def settled_vs_touch(
+    spec: BenchmarkSpec, results: list[EvalResult], colors: dict[str, tuple] | None = None
+) -> Figure:
+    """Per controller, pooled over the ranked (controllable) classes only: touch-once vs operational
+    vs settled. Touch-once counts an episode that merely passed through the tolerance; the drop to
+    settled is what a transient-minimum metric would overstate. Classes every controller fails by
+    construction (``loss``) are left out of the pool, so 100 % is reachable."""
     gates = (
-        ("touch_once", "touch-once (min error <= 0.2 deg)", 0.3),
-        ("operational", "operational (<= 5 deg, final 10 s)", 0.6),
-        ("settled", "settled (<= 0.2 deg, final 10 s)", 1.0),
+        ("touch_once", f"touch-once (min error <= {spec.gates.touch_deg:g} deg)", 0.3),
+        ("operational", f"operational (<= {spec.gates.operational_deg:g} deg, final window)", 0.6),
+        ("settled", f"settled (<= {spec.gates.settled_deg:g} deg, final window)", 1.0),
     )
+    pooled = spec.ranked_classes
     colors = colors or _colors([r.controller for r in results])
     fig, ax = plt.subplots(figsize=(12, 5.5))
     x = np.arange(len(results))
@@ -158,16 +159,17 @@ def settled_vs_touch(results: list[EvalResult], colors: dict[str, tuple] | None 
     for j, (gate, label, alpha) in enumerate(gates):
         stats = []
         for r in results:
-            k = sum(getattr(c, gate).k for c in r.cells)
-            n = sum(c.n for c in r.cells)
+            chosen = [c for c in r.cells if c.sensor is None and c.fault_class in pooled]
+            k = sum(getattr(c, gate).k for c in chosen)
+            n = sum(c.n for c in chosen)
             low, high = wilson_interval(k, n)
             stats.append(GateStat(k=k, rate=k / n, ci_low=low, ci_high=high))
-        for i, (r, s) in enumerate(zip(results, stats, strict=True)):
+        for i, (r, st) in enumerate(zip(results, stats, strict=True)):
             ax.bar(
                 x[i] + (j - 1) * width,
-                100 * s.rate,
+                100 * st.rate,
                 width,
-                yerr=_yerr([s]),
+                yerr=_yerr([st]),
                 capsize=2,
                 color=colors[r.controller],
                 alpha=alpha,
@@ -183,9 +185,13 @@ def settled_vs_touch(results: list[EvalResult], colors: dict[str, tuple] | None 
         fontsize=8,
     )
     ax.set_xlabel("controller")
-    ax.set_ylabel("rate over the four held-out classes (%)  [Wilson 95 % CI]")
+    n_pool = results[0].cells[0].n * len(pooled) if results else 0
+    ax.set_ylabel(f"rate over {', '.join(pooled)} (%)  [Wilson 95 % CI]")
     ax.set_ylim(0, 105)
-    ax.set_title("Touching the tolerance is not holding it: touch-once vs operational vs settled")
+    ax.set_title(
+        "Touching the tolerance is not holding it: touch-once vs operational vs settled\n"
+        f"(pooled over the ranked classes {', '.join(pooled)}: {n_pool} held-out episodes per controller)"
+    )
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="gate")
     ax.grid(axis="y", alpha=0.3)
     return fig
@@ -195,86 +201,120 @@ def _fault_text(t: Trajectory) -> str:
     g = ", ".join(f"{v:+.2f}" for v in t.gain)
     text = f"g = ({g}), f = {t.inertia_scale:.2f}"
     if np.any(t.bias):
-        text += "\nb = (" + ", ".join(f"{v:+.2f}" for v in t.bias) + ")"
+        text += ", b = (" + ", ".join(f"{v:+.2f}" for v in t.bias) + ")"
     return text
+
+
+FAMILIES = (
+    ("reference", "fault-unaware"),
+    ("classical", "identify, then control (classical)"),
+    ("learned", "learned"),
+    ("oracle", "privileged oracles (upper bounds)"),
+)
 
 
 def trajectories(
     spec: BenchmarkSpec, trajs: list[Trajectory], colors: dict[str, tuple] | None = None
 ) -> Figure:
-    """True pointing error (log scale) vs time for every controller on one pinned fault per class,
-    with the 0.2 deg gate and the 10 s dwell window."""
+    """True pointing error (log scale) vs time on the first pinned fault of each held-out class
+    (rows), one column per family of controllers so that no panel holds more than a few lines; the
+    settled gate and the dwell window drawn in every panel."""
     classes = list(spec.fault_classes)
     names = list(dict.fromkeys(t.controller for t in trajs))
     colors = colors or _colors(names)
-    oracles = [n for n in names if _privileged(trajs, n)]
-    styles = {n: ORACLE_STYLES[oracles.index(n) % len(ORACLE_STYLES)] if n in oracles else "-" for n in names}
+    families = [(f, title) for f, title in FAMILIES if any(t.family == f for t in trajs)]
+    oracles = [n for n in names if any(t.privileged for t in trajs if t.controller == n)]
+    style = {n: ("--", ":", "-.")[oracles.index(n) % 3] if n in oracles else "-" for n in names}
     end_s = spec.steps * spec.dt_s
     dwell_s = spec.gates.dwell_steps * spec.dt_s
-    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5), sharex=True, sharey=True)
-    for ax, fault_class in zip(axes.flat, classes, strict=True):
+    fig, axes = plt.subplots(
+        len(classes),
+        len(families),
+        figsize=(4.2 * len(families) + 1.5, 2.6 * len(classes) + 1.2),
+        sharex=True,
+        sharey=True,
+        squeeze=False,
+    )
+    for row, fault_class in enumerate(classes):
         panel = [t for t in trajs if t.fault_class == fault_class]
-        ax.axvspan(end_s - dwell_s, end_s, color="gold", alpha=0.25)
-        ax.axhline(spec.gates.settled_deg, color="red", linestyle="--", linewidth=1.2)
-        for t in panel:
-            ax.plot(
-                t.time_s,
-                np.maximum(t.error_deg, ERROR_FLOOR_DEG),
-                color=colors[t.controller],
-                linestyle=styles[t.controller],
-                linewidth=1.5 if t.privileged else 1.3,
-                zorder=2 if t.privileged else 3,
-            )
-        ax.set_yscale("log")
-        ax.set_ylim(ERROR_FLOOR_DEG, 300)
-        ax.set_xlim(0, end_s)
-        title = f"{fault_class}" + (f": {_fault_text(panel[0])}" if panel else "")
-        ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3, which="both", linewidth=0.4)
+        for col, (family, title) in enumerate(families):
+            ax = axes[row, col]
+            ax.axvspan(end_s - dwell_s, end_s, color="gold", alpha=0.25)
+            ax.axhline(spec.gates.settled_deg, color="red", linestyle="--", linewidth=1.0)
+            for t in (t for t in panel if t.family == family):
+                ax.plot(
+                    t.time_s,
+                    np.maximum(t.error_deg, ERROR_FLOOR_DEG),
+                    color=colors[t.controller],
+                    linestyle=style[t.controller],  # identical oracle curves both stay visible
+                    linewidth=1.5 if t.privileged else 1.3,
+                    label=t.controller,
+                )
+            ax.set_yscale("log")
+            ax.set_ylim(ERROR_FLOOR_DEG, 300)
+            ax.set_xlim(0, end_s)
+            ax.grid(alpha=0.3, which="both", linewidth=0.4)
+            if row == 0:
+                ax.set_title(title, fontsize=10)
+                ax.legend(fontsize=7, loc="lower left")
+            if col == 0:
+                ax.set_ylabel(f"{fault_class}\nerror (deg, log)", fontsize=9)
+            if col == len(families) - 1 and panel:
+                ax.text(
+                    1.03,
+                    0.5,
+                    _fault_text(panel[0]),
+                    transform=ax.transAxes,
+                    rotation=90,
+                    va="center",
+                    fontsize=7,
+                )
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("true pointing error (deg, log)")
-    handles: list[Artist] = [
-        plt.Line2D([], [], color=colors[n], linestyle=styles[n], label=_label(n, _privileged(trajs, n)))
-        for n in names
-    ]
-    handles += [
-        plt.Line2D([], [], color="red", linestyle="--", label=f"{spec.gates.settled_deg} deg settled gate"),
-        Patch(facecolor="gold", alpha=0.25, label=f"dwell window (final {dwell_s:g} s)"),
-    ]
-    fig.legend(handles=handles, loc="center left", bbox_to_anchor=(0.85, 0.5), fontsize=8)
     fig.suptitle(
-        "Example trajectories: every controller on the first pinned held-out fault of each class "
-        f"(errors below {ERROR_FLOOR_DEG:g} deg drawn at the floor)"
+        "True pointing error on the first pinned held-out fault of each class (rows); red: the "
+        f"{spec.gates.settled_deg:g} deg settled gate, gold: the final {dwell_s:g} s dwell window",
+        fontsize=11,
     )
-    fig.tight_layout(rect=(0, 0, 0.85, 1))
+    fig.text(
+        0.5,
+        0.005,
+        "g: per-axis effectiveness (negative: reversed, 0: dead); f: inertia scale (I = f I0); "
+        "b: per-axis additive torque bias, as a fraction of the torque cap. "
+        f"Errors below {ERROR_FLOOR_DEG:g} deg are drawn at the floor.",
+        ha="center",
+        fontsize=8,
+    )
+    fig.tight_layout(rect=(0, 0.02, 0.97, 0.97))
     return fig
-
-
-def _privileged(trajs: list[Trajectory], name: str) -> bool:
-    return next(t.privileged for t in trajs if t.controller == name)
 
 
 def sensor_faults(
     spec: BenchmarkSpec,
     results: list[EvalResult],
     regimes: Mapping[str, str],
+    final_errors: Mapping[str, Mapping[str, np.ndarray]],
     colors: dict[str, tuple] | None = None,
 ) -> Figure:
-    """Settled rate and median final error per sensor fault, shield-only faults shaded."""
+    """Settled rate (top) and the spread of the true final pointing error (bottom: box = quartiles,
+    whiskers = 5th-95th percentile, over the cell's episodes) per sensor fault; shield-only faults
+    shaded, the sensor bias marked where an unobservable offset parks the truth.
+
+    Args:
+        final_errors: controller -> sensor fault -> ``(n,)`` final errors (deg) of the cell.
+    """
     sensors = list(spec.sensor_faults)
     colors = colors or _colors([r.controller for r in results])
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 8), sharex=True)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 8.5), sharex=True)
     x = np.arange(len(sensors))
     width = 0.8 / max(len(results), 1)
     for ax in (top, bottom):
-        for xi, s in zip(x, sensors, strict=True):
-            if regimes[s] == "shield-only":
+        for xi, sensor in zip(x, sensors, strict=True):
+            if regimes[sensor] == "shield-only":
                 ax.axvspan(xi - 0.5, xi + 0.5, color="lightgrey", alpha=0.5, linewidth=0)
     for i, r in enumerate(results):
         by_sensor = {c.sensor: c for c in r.cells}
-        cells = [by_sensor[s] for s in sensors]
+        cells = [by_sensor[sensor] for sensor in sensors]
         offset = (i - (len(results) - 1) / 2) * width
         top.bar(
             x + offset,
@@ -286,43 +326,47 @@ def sensor_faults(
             label=_label(r.controller, r.privileged),
             **_bar_style(r.privileged),
         )
-        bottom.plot(
-            x + offset,
-            [max(c.final_error_deg.median, ERROR_FLOOR_DEG) for c in cells],
-            "o",
-            color=colors[r.controller],
-            markeredgecolor="black" if r.privileged else "none",
+        data = [np.maximum(final_errors[r.controller][sensor], ERROR_FLOOR_DEG) for sensor in sensors]
+        boxes = bottom.boxplot(
+            data,
+            positions=x + offset,
+            widths=0.8 * width,
+            whis=(5, 95),
+            showfliers=False,
+            patch_artist=True,
+            manage_ticks=False,
         )
-    bottom.axhline(
-        spec.gates.settled_deg,
-        color="red",
-        linestyle="--",
-        linewidth=1.2,
-        label=f"{spec.gates.settled_deg} deg settled gate",
-    )
+        for box in boxes["boxes"]:
+            box.set(facecolor=colors[r.controller], alpha=0.8, hatch=ORACLE_HATCH if r.privileged else None)
+        for median in boxes["medians"]:
+            median.set(color="black")
+    gate = spec.gates.settled_deg
+    bottom.axhline(gate, color="red", linestyle="--", linewidth=1.2, label=f"{gate:g} deg settled gate")
     biased = [(xi, sensor_bias_deg(s)) for xi, s in zip(x, sensors, strict=True) if sensor_bias_deg(s)]
     bottom.plot(
         [b[0] for b in biased],
         [b[1] for b in biased],
         "_",
         color="black",
-        markersize=24,
+        markersize=30,
         markeredgewidth=1.5,
-        label="sensor bias (where an unobservable bias parks the truth)",
+        label="sensor bias (where an unobservable offset parks the truth)",
     )
-    for r in results:
-        bottom.plot(
-            [],
-            [],
-            "o",
-            color=colors[r.controller],
-            markeredgecolor="black" if r.privileged else "none",
-            label=_label(r.controller, r.privileged),
-        )
+    for xi, s in zip(x, sensors, strict=True):
+        if sensor_bias_deg(s) == gate:
+            bottom.annotate(
+                "on the gate:\nrounding decides",
+                (xi, gate),
+                xytext=(xi, 2.0),
+                ha="center",
+                fontsize=8,
+                arrowprops={"arrowstyle": "->", "linewidth": 0.8},
+            )
     top.set_ylabel("settled rate (%)  [Wilson 95 % CI]")
     top.set_ylim(0, 105)
     top.set_title(
-        "Sensor faults on held-out sign faults, scored on the true state (grey: shield-only regime)"
+        f"Sensor faults on held-out {spec.sensor_base_class} faults, scored on the true state "
+        "(grey: shield-only regime)"
     )
     top.legend(
         handles=[
@@ -334,10 +378,10 @@ def sensor_faults(
         bbox_to_anchor=(1.01, 1.0),
     )
     bottom.set_yscale("log")
-    bottom.set_ylabel("median final true pointing error (deg, log)")
+    bottom.set_ylabel("final true pointing error (deg, log)\nbox: quartiles, whiskers: 5-95 %")
     bottom.set_xlabel("sensor fault")
     bottom.set_xticks(x, [f"{s}\n({regimes[s]})" for s in sensors])
-    bottom.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), markerscale=0.6)
+    bottom.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     for ax in (top, bottom):
         ax.grid(axis="y", alpha=0.3, which="both", linewidth=0.4)
     fig.tight_layout()
@@ -357,6 +401,18 @@ def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
 FIGURES = ("battery_settled", "bias_wall", "settled_vs_touch", "trajectories", "sensor_faults")
 
 
+def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
+    """controller -> sensor fault -> ``(n,)`` per-episode final errors of the sensor table."""
+    return {
+        r.controller: {
+            run.cell.sensor: run.outcomes.final_error_deg
+            for run in study.runs[r.controller]
+            if run.cell.sensor
+        }
+        for r in study.sensor.results
+    }
+
+
 def write_figures(study: Study, out_dir: Path) -> list[Path]:
     """Every figure of the study, PNG and SVG, into ``out_dir``."""
     battery = study.battery.results
@@ -365,8 +421,10 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
     figures = {
         "battery_settled": battery_bars(study.spec, battery, colors),
         "bias_wall": bias_wall(battery, colors),
-        "settled_vs_touch": settled_vs_touch(battery, colors),
+        "settled_vs_touch": settled_vs_touch(study.spec, battery, colors),
         "trajectories": trajectories(study.spec, study.trajectories, colors),
-        "sensor_faults": sensor_faults(study.spec, sensor.results, sensor.regimes, colors),
+        "sensor_faults": sensor_faults(
+            study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
+        ),
     }
     return [p for stem, fig in figures.items() for p in save(fig, out_dir, stem)]

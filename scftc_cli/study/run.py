@@ -10,11 +10,12 @@ prints for the same cell), and flies one pinned episode per class for the trajec
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import BaseModel
 
+from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, select_cells
 from scftc_cli.protocol import NO_PROGRESS, Progress
@@ -24,6 +25,9 @@ from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
+
+if TYPE_CHECKING:
+    from scftc_cli.distributed.runner import Runner
 
 Regime = Literal["controllable", "shield-only"]
 DEPLOYED_PREFERENCE = "rma_dob"  # the deployed controller of the source study
@@ -88,6 +92,7 @@ class Trajectory:
     inertia_scale: float
     error_deg: np.ndarray
     dt_s: float
+    family: str = "classical"
 
     @property
     def time_s(self) -> np.ndarray:
@@ -166,6 +171,7 @@ def _fly(
     n_faults: int,
     n_seeds: int,
     progress: Progress,
+    runner: Runner | None = None,
 ) -> list[CellRun]:
     """``evaluate_cells`` for one controller. A controller that fails to load or fly stops the study
     with an error naming it: a battery with a silently missing row would misreport the study."""
@@ -178,6 +184,8 @@ def _fly(
             n_seeds=n_seeds,
             progress=progress,
             label=entry.name,
+            runner=runner,
+            ref=BuiltinRef(entry.name, spec.version),
         )
     except ScftcError as err:
         raise StudyError(f"controller `{entry.name}` failed: {err}") from err
@@ -232,6 +240,7 @@ def example_trajectories(
                     inertia_scale=float(fault.inertia_scale[0]),
                     error_deg=principal_angle_deg(result.sigma[0]),
                     dt_s=spec.dt_s,
+                    family=entry.family,
                 )
             )
     return out
@@ -243,6 +252,7 @@ def run_study(
     n_seeds: int | None = None,
     *,
     progress: Progress = NO_PROGRESS,
+    runner: Runner | None = None,
 ) -> Study:
     """Run the battery, the sensor table and the example trajectories of ``spec``'s version.
 
@@ -250,6 +260,7 @@ def run_study(
         n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
             default; fewer for tests: the first faults and seeds of a cell do not depend on these).
         progress: told what runs and advanced after each simulated step.
+        runner: a Dask cluster to fly the cells on (the trajectories stay in process).
     """
     n_faults = spec.n_faults if n_faults is None else n_faults
     n_seeds = spec.n_seeds if n_seeds is None else n_seeds
@@ -257,7 +268,7 @@ def run_study(
     battery_order = list(entries.values())
     preflight(battery_order)
     actuator_cells = select_cells(spec, "test", None, None)
-    runs = {e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress) for e in battery_order}
+    runs = {e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress, runner) for e in battery_order}
     battery = [_result(e, spec, runs[e.name]) for e in battery_order]
 
     deployed, reason = choose_deployed(battery)
@@ -265,7 +276,7 @@ def run_study(
     sensor_cells = select_cells(spec, "test", None, "all")
     sensor_results = []
     for name in sensor_names:
-        sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress)
+        sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress, runner)
         runs[name] = runs[name] + sensor_runs
         sensor_results.append(_result(entries[name], spec, sensor_runs))
     gate = spec.gates.settled_deg
