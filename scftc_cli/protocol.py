@@ -12,7 +12,7 @@ import it without pulling in the battery, torch or the command line.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, is_dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -27,6 +27,47 @@ class TrueFault:
 
 
 @dataclass(frozen=True)
+class WheelKnowledge:
+    """What a ``scftc-v2`` controller knows about its reaction wheels (public constants).
+
+    Attributes:
+        spin_axes: ``(m, 3)`` unit spin axes ``g_i``, body frame.
+        u_max_nm: motor torque per wheel at command 1.
+        omega_max_rad_s: speed above which a spin-up torque is cut.
+        spin_inertia_kgm2, transverse_inertia_kgm2: ``Js``, ``Jt`` of each wheel.
+        coulomb_nm, viscous_nms, omega_linear_rad_s: nominal bearing friction ``fC0``, ``cV``, ``wLC``.
+    """
+
+    spin_axes: np.ndarray
+    u_max_nm: float
+    omega_max_rad_s: float
+    spin_inertia_kgm2: float
+    transverse_inertia_kgm2: float
+    coulomb_nm: float
+    viscous_nms: float
+    omega_linear_rad_s: float
+
+
+@dataclass(frozen=True)
+class SensorKnowledge:
+    """The noise figures of ``scftc-v2``'s sensors, per sample, in SI units (never their draws).
+
+    Attributes:
+        star_tracker_heads: number of heads.
+        star_tracker_noise_rad: 1-sigma rotation noise per axis of a head.
+        gyro_noise_rad_s: 1-sigma white rate noise per sample (``ARW / sqrt(dt)``).
+        gyro_bias_bound_rad_s: the constant gyro bias is uniform in +- this per axis.
+        tachometer_noise_rad_s: 1-sigma wheel-speed noise.
+    """
+
+    star_tracker_heads: int
+    star_tracker_noise_rad: float
+    gyro_noise_rad_s: float
+    gyro_bias_bound_rad_s: float
+    tachometer_noise_rad_s: float
+
+
+@dataclass(frozen=True)
 class Context:
     """What a controller knows before the first step of a batch: its benchmark version's public
     constants (never the fault, unless it is privileged).
@@ -37,6 +78,8 @@ class Context:
         dt_s: control step (the command is held over it).
         inertia_nominal_kgm2: ``(3,)`` diagonal of the *nominal* hub inertia.
         tau_max_nm: ``scftc-v1``: torque per body axis at command 1.
+        wheels: ``scftc-v2``: the reaction wheels' constants.
+        sensors: ``scftc-v2``: the sensors' noise figures.
         fault: the true fault (a version's fault record), handed only to privileged controllers.
     """
 
@@ -45,28 +88,36 @@ class Context:
     dt_s: float
     inertia_nominal_kgm2: np.ndarray
     tau_max_nm: float | None = None
+    wheels: WheelKnowledge | None = None
+    sensors: SensorKnowledge | None = None
     fault: Any = None
 
     def public(self) -> dict[str, Any]:
         """The JSON-able public part (everything but ``fault``): what crosses into a sandbox."""
-        out: dict[str, Any] = {}
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "fault":
-                continue
-            out[f.name] = value.tolist() if isinstance(value, np.ndarray) else value
-        return out
+        return {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name != "fault"}
 
     @classmethod
     def from_public(cls, doc: dict[str, Any]) -> Context:
         """Rebuild a fault-free context from ``public()``'s document (arrays as float64)."""
         known = {f.name for f in fields(cls)} - {"fault"}
-        kwargs: dict[str, Any] = {
-            k: (np.asarray(v, dtype=float) if isinstance(v, list) else v)
-            for k, v in doc.items()
-            if k in known
-        }
+        kwargs: dict[str, Any] = {k: _array(v) for k, v in doc.items() if k in known}
+        if isinstance(kwargs.get("wheels"), dict):
+            kwargs["wheels"] = WheelKnowledge(**{k: _array(v) for k, v in kwargs["wheels"].items()})
+        if isinstance(kwargs.get("sensors"), dict):
+            kwargs["sensors"] = SensorKnowledge(**kwargs["sensors"])
         return cls(**kwargs)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in fields(value)}
+    return value
+
+
+def _array(value: Any) -> Any:
+    return np.asarray(value, dtype=float) if isinstance(value, list) else value
 
 
 class Controller(ABC):

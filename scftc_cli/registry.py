@@ -19,6 +19,7 @@ from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 V1 = ("scftc-v1",)
+V2 = ("scftc-v2",)
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,9 @@ class ControllerSpec:
         benchmarks: the benchmark versions it can fly.
         artifacts: package-relative files it loads (tuned parameters, weights), hashed into every
             result's provenance.
+        family: ``reference`` (fault-unaware baselines), ``classical`` (adaptive and estimation
+            laws), ``learned`` (trained networks) or ``oracle`` (privileged upper bounds): how
+            tables and figures group the battery.
     """
 
     name: str
@@ -41,6 +45,7 @@ class ControllerSpec:
     privileged: bool = False
     benchmarks: tuple[str, ...] = V1
     artifacts: tuple[str, ...] = ()
+    family: str = "classical"
 
     def load(self) -> type[Controller]:
         """Import the controller's class."""
@@ -60,12 +65,15 @@ def _params(name: str) -> tuple[str, ...]:
 
 
 BUILTINS: tuple[ControllerSpec, ...] = (
-    ControllerSpec("pd", "scftc_cli.baselines.analytic:PD", "fault-unaware inertia-scaled PD on MRPs"),
+    ControllerSpec(
+        "pd", "scftc_cli.baselines.analytic:PD", "fault-unaware inertia-scaled PD on MRPs", family="reference"
+    ),
     ControllerSpec(
         "pid",
         "scftc_cli.baselines.pid:PID",
         "PD + integral on sigma with conditional-integration and clamping anti-windup",
         artifacts=_params("pid"),
+        family="reference",
     ),
     ControllerSpec(
         "classical_adaptive",
@@ -89,19 +97,22 @@ BUILTINS: tuple[ControllerSpec, ...] = (
         "e2e_ppo",
         "scftc_cli.baselines.ppo:E2EPPO",
         "end-to-end recurrent policy (LSTM) trained from scratch with PPO",
-        artifacts=("weights/e2e_ppo.pt",),
+        artifacts=("weights/e2e_ppo.npz",),
+        family="learned",
     ),
     ControllerSpec(
         "rma_student",
         "scftc_cli.baselines.rma:RMAStudent",
         "RMA: latched GRU estimate of theta = g/f feeding the analytic law",
-        artifacts=("weights/rma_student.pt",),
+        artifacts=("weights/rma_student.npz",),
+        family="learned",
     ),
     ControllerSpec(
         "rma_dob",
         "scftc_cli.baselines.rma:RMADob",
         "RMA gain student (trained with biases) + disturbance observer",
-        artifacts=("weights/rma_dob.pt",),
+        artifacts=("weights/rma_dob.npz",),
+        family="learned",
     ),
     ControllerSpec(
         "rls_dob",
@@ -110,26 +121,64 @@ BUILTINS: tuple[ControllerSpec, ...] = (
         artifacts=_params("rls_dob"),
     ),
     ControllerSpec(
+        "rls_plan",
+        "scftc_cli.baselines.plan:RLSPlan",
+        "rls_dob + dead-axis plan (gyroscopic rate nulling, p-q-p slews) + low-margin bias plan",
+        artifacts=_params("rls_plan"),
+    ),
+    ControllerSpec(
         "teacher",
         "scftc_cli.baselines.analytic:Teacher",
         "privileged: the analytic law fed the true theta = g/f",
         privileged=True,
+        family="oracle",
     ),
     ControllerSpec(
         "bias_oracle",
         "scftc_cli.baselines.analytic:BiasOracle",
         "privileged: the analytic law fed the true theta and beta = b/f",
         privileged=True,
+        family="oracle",
+    ),
+    # scftc-v2: the same methods, ported to four reaction wheels and noisy redundant sensors.
+    ControllerSpec(
+        "pd",
+        "scftc_cli.baselines.v2.analytic:PD",
+        "fault-unaware PD + gyroscopic and friction feed-forwards, median of the star-tracker heads",
+        benchmarks=V2,
+        family="reference",
+    ),
+    ControllerSpec(
+        "teacher",
+        "scftc_cli.baselines.v2.analytic:Teacher",
+        "privileged: the analytic law allocated through the true wheel effectiveness g(t)",
+        privileged=True,
+        benchmarks=V2,
+        family="oracle",
+    ),
+    ControllerSpec(
+        "bias_oracle",
+        "scftc_cli.baselines.v2.analytic:BiasOracle",
+        "privileged: the teacher plus the true wheel offsets and friction",
+        privileged=True,
+        benchmarks=V2,
+        family="oracle",
     ),
 )
 
 
-def registry(benchmark: str | None = DEFAULT_BENCHMARK) -> dict[str, ControllerSpec]:
-    """The built-ins that fly ``benchmark`` (every one with ``None``), deployable ones first, then
-    the oracles, in battery order."""
-    chosen = [c for c in BUILTINS if benchmark is None or benchmark in c.benchmarks]
+def registry(benchmark: str = DEFAULT_BENCHMARK) -> dict[str, ControllerSpec]:
+    """The built-ins that fly ``benchmark``, deployable ones first, then the oracles, in battery
+    order. A name is unique within a version; the same name on two versions (``pd``) is the same
+    method, ported."""
+    chosen = [c for c in BUILTINS if benchmark in c.benchmarks]
     ordered = sorted(chosen, key=lambda c: c.privileged)  # stable: battery order within each group
     return {c.name: c for c in ordered}
+
+
+def builtin_names() -> set[str]:
+    """Every built-in's name, on any benchmark version (reserved on every board)."""
+    return {c.name for c in BUILTINS}
 
 
 def controller_spec(name: str, benchmark: str = DEFAULT_BENCHMARK) -> ControllerSpec:
@@ -141,16 +190,16 @@ def controller_spec(name: str, benchmark: str = DEFAULT_BENCHMARK) -> Controller
     """
     if benchmark not in SPECS:
         raise UnknownNameError("benchmark version", benchmark, SPECS)
-    everything = registry(None)
-    if name not in everything:
-        raise UnknownNameError("controller", name, registry(benchmark))
-    entry = everything[name]
-    if benchmark not in entry.benchmarks:
-        raise UsageError(
-            f"controller `{name}` flies {', '.join(entry.benchmarks)} only, not {benchmark}; "
-            f"pick one of its versions with --benchmark, or a controller of {benchmark} (`scftc list`)"
-        )
-    return entry
+    here = registry(benchmark)
+    if name in here:
+        return here[name]
+    versions = sorted({v for c in BUILTINS if c.name == name for v in c.benchmarks})
+    if not versions:
+        raise UnknownNameError("controller", name, here)
+    raise UsageError(
+        f"controller `{name}` flies {', '.join(versions)} only, not {benchmark}; "
+        f"pick one of its versions with --benchmark, or a controller of {benchmark} (`scftc list`)"
+    )
 
 
 def make_controller(name: str, benchmark: str = DEFAULT_BENCHMARK) -> Controller:

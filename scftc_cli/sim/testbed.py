@@ -65,10 +65,13 @@ class Testbed(ABC):
         n_faults: int | None = None,
         n_seeds: int | None = None,
         salt: bytes = b"",
+        start: int = 0,
+        stop: int | None = None,
     ) -> Episodes:
         """The episodes of a cell: ``n_faults x n_seeds`` (the spec's by default), pinned by the
-        version's seeds, or keyed by ``salt`` for a sealed draw. The first faults and seeds of a
-        cell do not depend on ``n_faults`` or ``n_seeds``."""
+        version's seeds, or keyed by ``salt`` for a sealed draw; with ``start``/``stop`` only that
+        slice of them (equal to the slice of the whole draw). The first faults and seeds of a cell
+        do not depend on ``n_faults`` or ``n_seeds``."""
 
     @abstractmethod
     def plant(self, episodes: Episodes, backend: str = "numpy") -> Plant:
@@ -83,7 +86,7 @@ class Testbed(ABC):
         """What a controller may know; the true fault only if ``privileged``."""
 
 
-_TESTBEDS = {"scftc-v1": "scftc_cli.sim.v1:TESTBED"}
+_TESTBEDS = {"scftc-v1": "scftc_cli.sim.v1:TESTBED", "scftc-v2": "scftc_cli.sim.v2:TESTBED"}
 
 
 def testbed(version: str) -> Testbed:

@@ -12,13 +12,13 @@ import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from scftc_cli.baselines.params import Provenance
 from scftc_cli.errors import UnknownNameError
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
-from scftc_cli.spec import V1
+from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS, V1, BenchmarkSpec
 
 Budget = Literal["quick", "full"]
 
@@ -29,6 +29,7 @@ class TrainRequest:
 
     Attributes:
         controller: the registered controller name.
+        benchmark: the benchmark version it is tuned or trained for (its train split only).
         seed: the only source of randomness of the run (deterministic for a seed).
         budget: ``quick`` (< 2 min, CI smoke test) or ``full`` (the published artifact).
         out: where to write the artifact; ``None`` means the packaged default path.
@@ -37,12 +38,19 @@ class TrainRequest:
     """
 
     controller: str
+    benchmark: str = DEFAULT_BENCHMARK
     seed: int = 0
     budget: Budget = "full"
     out: Path | None = None
     command: str = ""
     progress: Progress = NO_PROGRESS
+    runner: Any = None  # a Dask cluster (distributed.runner.Runner) for the classical tuners
     _done: list[float] = field(default_factory=lambda: [0.0], repr=False, compare=False)
+
+    @property
+    def spec(self) -> BenchmarkSpec:
+        """The spec of ``benchmark``."""
+        return SPECS[self.benchmark]
 
     def on_progress(self, fraction: float, message: str) -> None:
         """The run is ``fraction`` (0..1) done; ``message`` says what it is doing."""
@@ -52,7 +60,10 @@ class TrainRequest:
 
     def provenance(self, train_settled_rate: float, notes: str) -> Provenance:
         """The provenance of this run's artifact (the command defaults to the canonical one)."""
-        canonical = f"scftc train --controller {self.controller} --seed {self.seed} --budget {self.budget}"
+        version = "" if self.benchmark == DEFAULT_BENCHMARK else f"--benchmark {self.benchmark} "
+        canonical = (
+            f"scftc train {version}--controller {self.controller} --seed {self.seed} --budget {self.budget}"
+        )
         command = self.command or canonical
         return Provenance(
             command=command,
@@ -77,31 +88,51 @@ Trainer = Callable[[TrainRequest], TrainReport]
 
 # Controller name -> "module:function", imported only when that trainer runs (torch, sb3-contrib
 # and scipy.optimize stay off every other command's path).
-TRAINERS: dict[str, str] = {
-    "pid": "scftc_cli.training.tuning:tune_pid",
-    "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
-    "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
-    "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
-    "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
-    "rma_student": "scftc_cli.training.rma:train_student",
-    "rma_dob": "scftc_cli.training.rma:train_student",
-    "e2e_ppo": "scftc_cli.training.ppo:train_e2e_ppo",
+TRAINERS: dict[str, dict[str, str]] = {
+    "scftc-v1": {
+        "pid": "scftc_cli.training.tuning:tune_pid",
+        "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
+        "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
+        "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
+        "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
+        "rls_plan": "scftc_cli.training.tuning:tune_rls_plan",
+        "rma_student": "scftc_cli.training.rma:train_student",
+        "rma_dob": "scftc_cli.training.rma:train_student",
+        "e2e_ppo": "scftc_cli.training.ppo:train_e2e_ppo",
+    },
+    "scftc-v2": {},
 }
+"""Per benchmark version, controller name -> trainer."""
 
 
-def get_trainer(name: str) -> Trainer:
-    """The trainer of controller ``name``; an unknown name lists the trainable ones."""
-    if name not in TRAINERS:
-        raise UnknownNameError("trainable controller", name, TRAINERS)
-    module, _, attr = TRAINERS[name].partition(":")
+def cluster_trainers(benchmark: str = DEFAULT_BENCHMARK) -> tuple[str, ...]:
+    """The trainers of ``benchmark`` that spread over a Dask cluster (differential evolution's
+    population): the classical tuners."""
+    return tuple(
+        name for name, target in TRAINERS[benchmark].items() if target.startswith("scftc_cli.training.tuning")
+    )
+
+
+def get_trainer(name: str, benchmark: str = DEFAULT_BENCHMARK) -> Trainer:
+    """The trainer of controller ``name`` on ``benchmark``; an unknown name lists the trainable ones."""
+    if benchmark not in TRAINERS:
+        raise UnknownNameError("benchmark version", benchmark, TRAINERS)
+    if name not in TRAINERS[benchmark]:
+        raise UnknownNameError(f"trainable controller of {benchmark}", name, TRAINERS[benchmark])
+    module, _, attr = TRAINERS[benchmark][name].partition(":")
     return getattr(importlib.import_module(module), attr)
 
 
 def train_settled_rates(
-    make: Callable[[], Controller], classes: tuple[str, ...], n_faults: int, n_seeds: int
+    make: Callable[[], Controller],
+    classes: tuple[str, ...],
+    n_faults: int,
+    n_seeds: int,
+    spec: BenchmarkSpec = V1,
 ) -> dict[str, float]:
     """Settled rate of ``make()``'s controller on the first ``n_faults x n_seeds`` pinned episodes
-    of each *train* cell of ``classes`` (``scftc-v1``): the score every trainer reports."""
-    cells = [Cell("train", c) for c in classes]
-    runs = evaluate_cells(lambda _cell: make(), V1, cells, n_faults=n_faults, n_seeds=n_seeds)
-    return {run.cell.fault_class: run.result.settled.rate for run in runs}
+    of each *train* cell of ``classes`` (a sensor class ``sign+st_bias`` names a sensor cell): the
+    score every trainer reports."""
+    cells = [Cell("train", *c.split("+")) if "+" in c else Cell("train", c) for c in classes]
+    runs = evaluate_cells(lambda _cell: make(), spec, cells, n_faults=n_faults, n_seeds=n_seeds)
+    return {run.cell.label: run.result.settled.rate for run in runs}

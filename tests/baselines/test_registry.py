@@ -11,13 +11,19 @@ import pytest
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.errors import UnknownNameError
 from scftc_cli.registry import BUILTINS, controller_spec, make_controller, registry
+from scftc_cli.spec import SPECS
 
 
-@pytest.mark.parametrize("name", sorted(registry(None)))
-def test_every_registered_controller_passes_the_checker(name):
-    entry = registry(None)[name]
+@pytest.mark.parametrize("entry", BUILTINS, ids=lambda e: f"{e.name}-{'-'.join(e.benchmarks)}")
+def test_every_registered_controller_passes_the_checker(entry):
     for benchmark in entry.benchmarks:
-        check_controller(make_controller(name, benchmark), benchmark=benchmark)
+        check_controller(make_controller(entry.name, benchmark), benchmark=benchmark)
+
+
+def test_a_name_is_unique_within_each_version():
+    for version in SPECS:
+        names = [c.name for c in BUILTINS if version in c.benchmarks]
+        assert len(names) == len(set(names)), version
 
 
 @pytest.mark.parametrize("entry", BUILTINS, ids=lambda e: e.name)
@@ -44,7 +50,7 @@ def test_unknown_name_suggests_the_closest():
 
 def test_listing_the_battery_imports_no_controller_module():
     code = (
-        "import sys; from scftc_cli.registry import registry; registry(None); "
+        "import sys; from scftc_cli.registry import registry; [registry(v) for v in ('scftc-v1', 'scftc-v2')]; "
         "assert not [m for m in sys.modules if m.startswith('scftc_cli.baselines')], sys.modules.keys(); "
         "assert 'torch' not in sys.modules"
     )

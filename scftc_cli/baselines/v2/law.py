@@ -1,0 +1,170 @@
+"""The pieces every ``scftc-v2`` controller is built from (docs/benchmark-v2.md, "The analytic law").
+
+- ``split_observation``: the 19 values as heads ``(n, 3, 3)``, validity ``(n, 3)``, gyro ``(n, 3)``
+  and tachometers ``(n, 4)``.
+- ``AttitudeFuser``: the component-wise median of the valid heads (each first put on the MRP branch
+  nearest the previous estimate, so a head near the shadow-set switch does not split the vote);
+  with no valid head, the last estimate propagated with the gyro.
+- ``torque_demand``: ``L = -I0 (Kp sigma + Kd w) + w x (I0 w + sum_i Js Omega_i g_i)``, the PD
+  with the gyroscopic feed-forward (without it the wheels' initial momentum couples into the loop).
+- ``allocate``: normalized wheel commands ``a`` such that the hub torque of the wheels is ``L``
+  when the estimates are right: a wheel torque ``u`` puts ``-u g`` on the hub and wheel ``i``
+  applies ``u_i = (g_i a_i + b_i) u_max`` plus its friction ``fr_i``. The demand goes through the
+  pseudo-inverse of ``G diag(g)`` (a dead wheel's column is zero, so the others take its share);
+  each working wheel cancels its own offset and friction, and the working wheels together cancel
+  a dead wheel's friction torque.
+- ``friction_nm``: the bearing friction predicted from a tachometer speed.
+
+All arrays are batch-first; units SI.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scftc_cli.errors import UsageError
+from scftc_cli.protocol import Context, WheelKnowledge
+from scftc_cli.sim.mrp import compose, cross, norm2
+
+KP_S2 = 0.04  # the calibration point (as scftc-v1)
+KD_S = 0.14
+HEADS, VALID, GYRO, TACHOMETERS = slice(0, 9), slice(9, 12), slice(12, 15), slice(15, 19)
+
+
+def wheels_of(context: Context) -> WheelKnowledge:
+    """The wheel constants of ``context``; a clear error for a controller asked to fly v1."""
+    if context.wheels is None or context.sensors is None:
+        raise UsageError(
+            f"this controller flies scftc-v2's reaction wheels, not {context.benchmark_version}'s actuators"
+        )
+    return context.wheels
+
+
+def split_observation(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(heads (n, 3, 3) MRP, valid (n, 3) bool, gyro (n, 3) rad/s, tachometers (n, 4) rad/s)``."""
+    n = len(obs)
+    return obs[:, HEADS].reshape(n, 3, 3), obs[:, VALID] > 0.5, obs[:, GYRO], obs[:, TACHOMETERS]
+
+
+def nearest_branch(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``sigma`` or its shadow ``-sigma / |sigma|^2`` (the same attitude), whichever is nearer
+    ``reference``; rows of ``(n, 3)``."""
+    s2 = norm2(sigma)[:, None]
+    shadow = -sigma / np.where(s2 > 0.0, s2, 1.0)
+    closer = norm2(shadow - reference) < norm2(sigma - reference)
+    return np.where(closer[:, None] & (s2 > 0.0), shadow, sigma)
+
+
+def rotation_mrp(angle_rad: np.ndarray) -> np.ndarray:
+    """MRP of a small rotation vector ``(n, 3)``: ``tan(|phi|/4) phi/|phi|``, to third order
+    ``phi / 4 (1 + |phi|^2 / 48)``, exact to 1e-12 for the rotations of one step."""
+    return 0.25 * angle_rad * (1.0 + norm2(angle_rad)[:, None] / 48.0)
+
+
+class AttitudeFuser:
+    """Fuses the star-tracker heads of a batch, step by step.
+
+    ``update(heads, valid, gyro, dt)`` returns the fused attitude ``(n, 3)``: the component-wise
+    median of the valid heads (the mean of two, the one of one); where no head is valid, the last
+    estimate propagated with the trapezoid of the last two gyro readings. Before any valid head
+    the estimate is zero (never the case in the benchmark: every episode starts with valid heads).
+    """
+
+    def __init__(self, n: int) -> None:
+        self.sigma = np.zeros((n, 3))
+        self.last_gyro: np.ndarray | None = None
+
+    def update(self, heads: np.ndarray, valid: np.ndarray, gyro: np.ndarray, dt_s: float) -> np.ndarray:
+        if self.last_gyro is not None:
+            propagated = compose(self.sigma, rotation_mrp(0.5 * (self.last_gyro + gyro) * dt_s))
+        else:
+            propagated = self.sigma
+        self.last_gyro = gyro.copy()
+        aligned = np.stack([nearest_branch(heads[:, h], propagated) for h in range(heads.shape[1])], axis=1)
+        voted, count = vote(aligned, valid)
+        self.sigma = np.where((count > 0)[:, None], voted, propagated)
+        return self.sigma
+
+
+def vote(aligned: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Component-wise median of three heads ``(n, 3, 3)`` where all are valid, the mean of the
+    valid ones otherwise; returns ``(vote (n, 3), number of valid heads (n,))``."""
+    a, b, c = aligned[:, 0], aligned[:, 1], aligned[:, 2]
+    median = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+    count = valid.sum(axis=1)
+    mean = (aligned * valid[:, :, None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+    return np.where((count == 3)[:, None], median, mean), count
+
+
+def torque_demand(
+    sigma: np.ndarray,
+    gyro: np.ndarray,
+    tachometers: np.ndarray,
+    context: Context,
+    kp_s2: float = KP_S2,
+    kd_s: float = KD_S,
+) -> np.ndarray:
+    """``L = -I0 (Kp sigma + Kd w) + w x (I0 w + sum_i Js Omega_i g_i)`` ``(n, 3)`` N m."""
+    wheels = wheels_of(context)
+    inertia = context.inertia_nominal_kgm2
+    momentum = inertia * gyro + (wheels.spin_inertia_kgm2 * tachometers) @ wheels.spin_axes
+    return -inertia * (kp_s2 * sigma + kd_s * gyro) + cross(gyro, momentum)
+
+
+def friction_nm(
+    speed_rad_s: np.ndarray, coulomb_nm: np.ndarray | float, wheels: WheelKnowledge
+) -> np.ndarray:
+    """Bearing friction ``(n, m)`` N m on each wheel at ``speed_rad_s`` (the plant's law):
+    ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC``."""
+    linear = wheels.omega_linear_rad_s
+    slope = (coulomb_nm + wheels.viscous_nms * linear) / linear
+    outside = -(np.sign(speed_rad_s) * coulomb_nm + wheels.viscous_nms * speed_rad_s)
+    return np.where(np.abs(speed_rad_s) < linear, -(slope * speed_rad_s), outside)
+
+
+def pseudo_inverse(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+    """``M' (M M' + eps I)^-1`` ``(n, m, 3)`` of ``(n, 3, m)`` matrices of full row rank: their
+    pseudo-inverse, in closed form (a 3x3 inverse per row, vectorized over the batch); ``eps``
+    (relative to the trace) keeps it finite when a row loses rank."""
+    mmt = matrix @ np.swapaxes(matrix, 1, 2)
+    eps = damping * np.trace(mmt, axis1=1, axis2=2)[:, None, None]
+    return np.swapaxes(matrix, 1, 2) @ np.linalg.inv(mmt + eps * np.eye(3))
+
+
+def allocation(gain_hat: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:
+    """``pinv(G diag(g_hat))`` ``(n, m, 3)`` for gain estimates ``(n, m)``; a wheel estimated dead
+    (``g_hat = 0``) gets a zero row."""
+    effective = wheels.spin_axes.T[None, :, :] * gain_hat[:, None, :]
+    return pseudo_inverse(effective)
+
+
+def allocate(
+    demand_nm: np.ndarray,
+    allocation_matrix: np.ndarray,
+    gain_hat: np.ndarray,
+    friction_hat_nm: np.ndarray,
+    bias_hat: np.ndarray | float,
+    wheels: WheelKnowledge,
+    dead_below: float = 1e-6,
+) -> np.ndarray:
+    """Commands ``a`` ``(n, m)`` in [-1, 1] for a body torque demand ``L``, with each working wheel
+    cancelling its own offset and friction (so neither drives the wheels' momentum along the null
+    space of ``G``) and the working wheels together cancelling a dead wheel's friction torque.
+
+    ``a = pinv(G diag(g)) (-(L + G_dead fr_dead) / u_max) - (b + fr / u_max) / g`` on working
+    wheels; clipped.
+
+    Args:
+        demand_nm: body torque demand ``L`` ``(n, 3)``.
+        allocation_matrix: ``allocation(g_hat)`` ``(n, m, 3)``.
+        gain_hat: estimated effectiveness ``(n, m)``; ``|g_hat| <= dead_below`` counts as dead.
+        friction_hat_nm: predicted friction ``(n, m)`` on each wheel.
+        bias_hat: estimated offsets ``(n, m)`` (fractions of ``u_max``), or 0.
+    """
+    u_max = wheels.u_max_nm
+    working = np.abs(gain_hat) > dead_below
+    dead_friction = np.where(working, 0.0, friction_hat_nm) @ wheels.spin_axes
+    target = -(demand_nm + dead_friction) / u_max
+    cancel = (np.asarray(bias_hat) + friction_hat_nm / u_max) / np.where(working, gain_hat, 1.0)
+    command = np.einsum("nij,nj->ni", allocation_matrix, target) - np.where(working, cancel, 0.0)
+    return np.clip(command, -1.0, 1.0)
