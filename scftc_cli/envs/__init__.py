@@ -1,19 +1,31 @@
-"""Gymnasium environments of the benchmark. Importing this package registers
-``scftc/AttitudeFTC-v1`` (``gymnasium.make`` and, vectorized over the batch simulator,
-``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). Needs ``gymnasium``
-(``pip install scftc[rl]``)."""
+"""Gymnasium environments of the benchmark, registered by id.
+
+``import scftc_cli`` is enough for ``gymnasium.make("scftc/AttitudeFTC-v1")`` (``scftc-v2``:
+``scftc/AttitudeFTCWheels-v2``) and ``gymnasium.make_vec(..., vectorization_mode=
+"vector_entry_point")``: the package registers these ids as soon as gymnasium is imported (before
+or after it), and never imports gymnasium itself, so ``scftc --help`` stays fast. The entry points
+are strings: the environment modules load on ``make``. Needs ``gymnasium`` (``pip install
+scftc[rl]``). Observation, action, reward and episodes: ``docs/rl.md``.
+"""
 
 from __future__ import annotations
 
-import gymnasium
+ENVS: dict[str, tuple[str, str]] = {
+    "scftc/AttitudeFTC-v1": (
+        "scftc_cli.envs.attitude:AttitudeFTCEnv",
+        "scftc_cli.envs.attitude:AttitudeFTCVectorEnv",
+    ),
+    "scftc/AttitudeFTCWheels-v2": (
+        "scftc_cli.envs.wheels:AttitudeFTCv2Env",
+        "scftc_cli.envs.wheels:AttitudeFTCv2VectorEnv",
+    ),
+}
 
-from scftc_cli.envs.attitude import ENV_ID, AttitudeFTCEnv, AttitudeFTCVectorEnv
 
-__all__ = ["ENV_ID", "AttitudeFTCEnv", "AttitudeFTCVectorEnv"]
+def register() -> None:
+    """Register every environment of ``ENVS`` with gymnasium (idempotent)."""
+    import gymnasium
 
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(
-        id=ENV_ID,
-        entry_point="scftc_cli.envs.attitude:AttitudeFTCEnv",
-        vector_entry_point="scftc_cli.envs.attitude:AttitudeFTCVectorEnv",
-    )
+    for env_id, (entry_point, vector_entry_point) in ENVS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)

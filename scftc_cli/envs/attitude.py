@@ -11,9 +11,10 @@ for logging):
     r = -e_meas_deg / 180 - |w_meas| + 0.5 exp(-e_meas_deg / 1 deg)
 
 ``AttitudeFTCEnv`` is the single-episode ``gymnasium.Env`` (passes ``check_env``);
-``AttitudeFTCVectorEnv`` steps ``num_envs`` episodes as one array operation on the batch
-simulator (same-step autoreset: all episodes share the fixed horizon, so they reset together and
-the last observation is in ``info["final_obs"]``). Train only on the ``train`` split; the
+``AttitudeFTCVectorEnv`` steps ``num_envs`` episodes as one call of the benchmark's fused kernel
+(``backend="numpy"``, bit-identical to the ``reference`` numpy plant; same-step autoreset: all
+episodes share the fixed horizon, so they reset together and the last observation is in
+``info["final_obs"]``). Train only on the ``train`` split; the
 ``test`` split exists here for evaluation, never for tuning.
 """
 
@@ -31,10 +32,13 @@ from gymnasium.vector.vector_env import AutoresetMode
 from scftc_cli.errors import UsageError
 from scftc_cli.sim.mrp import angle_deg_from_norm2, principal_angle_deg
 from scftc_cli.sim.v1 import TESTBED
-from scftc_cli.sim.v1.faults import check_cell, sample_episodes
+from scftc_cli.sim.v1.faults import check_cell, sample_episodes, sample_episodes_batch
 from scftc_cli.spec import V1
 
 ENV_ID = "scftc/AttitudeFTC-v1"
+SAMPLERS = {"batch": sample_episodes_batch, "per_episode": sample_episodes}
+"""How a reset draws its episodes: ``batch`` (whole arrays, fast) or ``per_episode`` (one fault at
+a time, the stream the committed e2e_ppo weights were trained on). Same distribution."""
 DEFAULT_CLASSES = ("sign", "gain", "gain_bias")
 # A bound no episode can reach: |H| <= sqrt(3) (2.0 + 0.3) tau_max * 200 s ~ 160 N m s over a whole
 # episode, so |w| <= 160 / (0.7 * 6 kg m^2) ~ 38 rad/s whatever the controller does.
@@ -58,19 +62,31 @@ def _observation_space(include_prev_action: bool) -> spaces.Box:
 class _Batch:
     """``n`` benchmark episodes stepped together on the fused kernel; the core of both environments."""
 
-    def __init__(self, n: int, split: str, fault_classes: tuple[str, ...], include_prev_action: bool):
-        for c in fault_classes:
-            check_cell(V1, split, c, None)
+    def __init__(
+        self,
+        n: int,
+        split: str,
+        fault_classes: tuple[str, ...],
+        include_prev_action: bool,
+        sampler: str,
+        backend: str = "numpy",
+    ) -> None:
         if not fault_classes:
             raise UsageError("fault_classes must name at least one class")
+        for c in fault_classes:
+            check_cell(V1, split, c, None)
+        if sampler not in SAMPLERS:
+            raise UsageError(f"sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
         self.n, self.split, self.fault_classes = n, split, tuple(fault_classes)
         self.include_prev_action = include_prev_action
+        self.sample = SAMPLERS[sampler]
+        self.backend = backend
         self.k = 0
 
     def reset(self, rng: np.random.Generator) -> np.ndarray:
         """Draw ``n`` fresh episodes from ``rng``; returns the first observations ``(n, d)``."""
-        episodes = sample_episodes(rng, self.n, self.split, self.fault_classes)
-        self.plant = TESTBED.plant(episodes, "numpy")
+        episodes = self.sample(rng, self.n, self.split, self.fault_classes)
+        self.plant = TESTBED.plant(episodes, self.backend)
         self.prev_action = np.zeros((self.n, 3))
         self.k = 0
         return self._obs()
@@ -109,7 +125,7 @@ class AttitudeFTCEnv(gym.Env):
         fault_classes: tuple[str, ...] = DEFAULT_CLASSES,
         include_prev_action: bool = False,
     ) -> None:
-        self._batch = _Batch(1, split, tuple(fault_classes), include_prev_action)
+        self._batch = _Batch(1, split, tuple(fault_classes), include_prev_action, "per_episode")
         self.observation_space = _observation_space(include_prev_action)
         self.action_space = spaces.Box(-1.0, 1.0, (3,), dtype=np.float32)
 
@@ -135,11 +151,13 @@ class AttitudeFTCVectorEnv(VectorEnv):
         split: str = "train",
         fault_classes: tuple[str, ...] = DEFAULT_CLASSES,
         include_prev_action: bool = False,
+        sampler: str = "batch",
+        backend: str = "numpy",
     ) -> None:
         if num_envs < 1:
             raise UsageError("num_envs must be at least 1")
         self.num_envs = num_envs
-        self._batch = _Batch(num_envs, split, tuple(fault_classes), include_prev_action)
+        self._batch = _Batch(num_envs, split, tuple(fault_classes), include_prev_action, sampler, backend)
         self.single_observation_space = _observation_space(include_prev_action)
         self.single_action_space = spaces.Box(-1.0, 1.0, (3,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)

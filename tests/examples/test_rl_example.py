@@ -1,0 +1,32 @@
+"""The worked RL example runs end to end: PPO on the train split through ``gymnasium.make_vec``,
+exported to one submission file with its weights inside, dry-run in the sandbox."""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from scftc_cli.submission.manifest import load_submission
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLE = ROOT / "examples" / "train_ppo_and_submit.py"
+
+
+@pytest.mark.slow
+def test_train_export_and_dry_run(tmp_path: Path):
+    pytest.importorskip("stable_baselines3")
+    out = tmp_path / "tiny_ppo.py"
+    command = [sys.executable, str(EXAMPLE), "--timesteps", "2048", "--num-envs", "8", "--name", "tiny_ppo"]
+    command += ["--out", str(out), "--dry-run-size", "2", "1"]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert f"wrote {out}" in result.stdout
+    assert "public draw:" in result.stdout and "dry run: public draw only" in result.stdout
+    sub = load_submission(out)  # one valid file: its sha256 covers the weights inside it
+    assert sub.manifest.name == "tiny_ppo" and "WEIGHTS" in sub.source.decode()
+    assert sub.sha256 == hashlib.sha256(out.read_bytes()).hexdigest()
+    assert not any(m.split(".")[0] == "torch" for m in sub.imports)  # numpy alone in the sandbox
