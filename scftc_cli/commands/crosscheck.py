@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import exits_cleanly, progress_bar
+from scftc_cli.commands.common import DEFAULT, BenchmarkOption, exits_cleanly, progress_bar
 
 
 @exits_cleanly
@@ -21,18 +21,22 @@ def crosscheck_command(
             help="Controller in the loop, repeatable [default: pd and an adaptive law].", show_default=False
         ),
     ] = None,
+    benchmark: BenchmarkOption = DEFAULT,
 ) -> None:
     """Fly the same episodes through the default backend and Basilisk and compare every state.
 
-    Prints one JSON document; exits 1 if any sigma or omega differs by more than 1e-9 or any
-    gate outcome differs.
+    Prints one JSON document; exits 1 if any state differs by more than 1e-9 (sigma, omega in
+    rad/s; on scftc-v2 also the wheel speeds, as a fraction of their speed limit) or any gate
+    outcome differs.
     """
     from scftc_cli.errors import ScftcError
-    from scftc_cli.study.crosscheck import TOLERANCE, crosscheck, default_controllers, total_steps
+    from scftc_cli.study.crosscheck import TOLERANCE, crosscheck, default_controllers, plan, total_steps
 
-    controllers = tuple(controller) if controller else default_controllers()
-    with progress_bar(f"crosscheck: {episodes} episodes", total_steps(episodes, controllers)) as progress:
-        result = crosscheck(episodes, controllers, progress=progress)
+    version = plan(benchmark).spec.version
+    controllers = tuple(controller) if controller else default_controllers(version)
+    steps = total_steps(episodes, controllers, version)
+    with progress_bar(f"crosscheck: {episodes} episodes", steps) as progress:
+        result = crosscheck(episodes, controllers, benchmark=version, progress=progress)
     typer.echo(json.dumps(result.dump(), indent=2))
     if not result.passed:
         why = [] if result.gates_agree else ["gate outcomes differ"]

@@ -12,25 +12,22 @@ A head's rotation noise is the MRP ``(sigma_st / 4) z``: the rotation vector of 
 ``sigma_st`` of rotation noise without a transcendental function (those may round differently on
 different CPUs; the observations must not).
 
-Speed: ``observe`` runs as one fused numba pass over the batch (``_observe_kernel``), with the
-floating-point operations of ``mrp.compose`` and of the plain numpy expressions written beside it,
-in the same order and without contraction into fused multiply-adds, so the observations are the
-numpy expressions' to the bit (``tests/sim/v2/test_sensors.py`` holds them to that). The noise
-blocks of large batches are filled by two threads, each drawing whole episodes from their own
-streams (numpy releases the GIL while it fills), which changes no number.
+``observe_reference`` writes the observation as plain numpy array operations (the readable
+definition); ``observe``, what every rollout calls, runs the same floating-point operations in the
+same order (those of ``mrp.compose`` included), without contraction into fused multiply-adds, as
+one numba pass over the batch: the two agree to the bit, and ``observe`` is several times faster
+on large batches (the noise draws, which both share, aside).
 """
 
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
-from functools import cache
 
 import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
+from scftc_cli.sim.mrp import compose
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.sim.v2.faults import WheelEpisodes, sensor_code
 from scftc_cli.spec import V2, BenchmarkSpec, SensorSuite
@@ -39,16 +36,6 @@ ARCSEC_TO_RAD = math.pi / (180.0 * 3600.0)
 NOISE_CHANNELS = 16
 """Normals per episode per step: 3 heads x 3 axes, 3 gyro axes, 4 tachometers."""
 BLOCK_STEPS = 50
-THREADED_MIN_BATCH = 1_000
-"""From this many episodes on, noise blocks are filled by two threads (below it, starting them
-costs more than it saves)."""
-
-
-@cache
-def _fill_pool() -> ThreadPoolExecutor | None:
-    """The threads that fill noise blocks (shared by every batch of the process); ``None`` on one core."""
-    workers = min(2, os.cpu_count() or 1)
-    return ThreadPoolExecutor(workers, thread_name_prefix="scftc-noise") if workers > 1 else None
 
 
 def sensor_knowledge(suite: SensorSuite, dt_s: float) -> SensorKnowledge:
@@ -106,23 +93,45 @@ class HeadsGyroTachometers(Sensors):
         if not self.block_start <= k < self.block_start + BLOCK_STEPS:
             if k != self.block_start + BLOCK_STEPS:
                 raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
-            pool = _fill_pool() if len(self.streams) >= THREADED_MIN_BATCH else None
-            if pool is None:
-                self._fill(0, len(self.streams))
-            else:
-                half = len(self.streams) // 2
-                list(pool.map(self._fill, (0, half), (half, len(self.streams))))
+            for e, stream in enumerate(self.streams):
+                stream.standard_normal(out=self.block[e])
             self.block_start = k
         return self.block[:, k - self.block_start]
 
-    def _fill(self, start: int, stop: int) -> None:
-        """Draw the next block of episodes ``start..stop-1``, each from its own stream."""
-        block, streams = self.block, self.streams
-        for e in range(start, stop):
-            streams[e].standard_normal(out=block[e])
+    def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
+        """``observe`` as numpy array operations: the readable definition, equal to the bit."""
+        states = plant.states()
+        sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
+        n = len(sigma)
+        z = self._noise(k)
+        faulted = k >= self.onset
+        out = np.empty((n, 9 + self.heads + 3 + wheels.shape[1]))
+        head_noise = (0.25 * self.knowledge.star_tracker_noise_rad) * z[:, :9]
+        for h in range(self.heads):
+            this = self.head == h
+            seen = sigma
+            biased = np.flatnonzero(faulted & self.biased & this)
+            if len(biased):
+                seen = sigma.copy()
+                seen[biased] = compose(sigma[biased], self.head_bias[biased])
+            reported = compose(seen, head_noise[:, 3 * h : 3 * h + 3])
+            stuck = self.stuck & this
+            np.copyto(self.frozen, reported, where=(stuck & (k == self.onset))[:, None])
+            reported = np.where((stuck & faulted)[:, None], self.frozen, reported)
+            valid = ~(self.outage & faulted)
+            out[:, 3 * h : 3 * h + 3] = np.where(valid[:, None], reported, 0.0)
+            out[:, 9 + h] = valid
+        g = 9 + self.heads
+        gyro_noise = self.knowledge.gyro_noise_rad_s * z[:, 9:12]
+        out[:, g : g + 3] = (
+            omega + self.gyro_bias + gyro_noise + np.where(faulted[:, None], self.gyro_step, 0.0)
+        )
+        out[:, g + 3 :] = wheels + self.knowledge.tachometer_noise_rad_s * z[:, 12:16]
+        return out
 
     def observe(self, k: int, plant: Plant) -> np.ndarray:
-        """``(n, 19)`` observation of the plant's true state at the start of step ``k``."""
+        """``(n, 19)`` observation of the plant's true state at the start of step ``k``
+        (``observe_reference``'s numbers, fused into one pass)."""
         states = plant.states()
         sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
         z = self._noise(k)
@@ -182,13 +191,12 @@ def _observe_kernel(
     k, heads, sigma, omega, wheels, z, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
     frozen, head_scale, gyro_scale, tach_scale, out,
 ):  # fmt: skip
-    """Every episode's observation of step ``k`` into ``out`` ``(n, 19)``; updates ``frozen``.
-
-    Per head ``h``: the true attitude (composed with the head's offset where ``st_bias`` is in
-    force on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen and
-    repeated from then on; an outage reports zeros and validity 0. Gyro ``((w + bias) + noise) +
-    step`` (the step 0.0 before the onset, as the numpy expression adds it); tachometers
-    ``Omega + noise``.
+    """``observe_reference`` of every episode of step ``k`` into ``out`` ``(n, 19)``; updates
+    ``frozen``. Per head ``h``: the true attitude (composed with the head's offset where ``st_bias``
+    is in force on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen
+    and repeated from then on; an outage reports zeros and validity 0. Gyro ``((w + bias) + noise)
+    + step`` (the step is 0.0 before the onset, and added all the same, as numpy adds it);
+    tachometers ``Omega + noise``.
     """
     for e in range(sigma.shape[0]):
         faulted = k >= onset[e]
