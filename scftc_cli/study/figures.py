@@ -53,14 +53,17 @@ def _bar_style(privileged: bool) -> dict:
 def battery_bars(
     spec: BenchmarkSpec, results: list[EvalResult], colors: dict[str, tuple] | None = None
 ) -> Figure:
-    """Grouped bars: settled rate per held-out class (groups) and controller (bars), Wilson 95 %."""
+    """Grouped bars: settled rate per held-out class (groups) and controller (bars), Wilson 95 %;
+    sensor classes too where the battery flew them (``scftc-v2``)."""
     classes = list(spec.fault_classes)
+    if any(c.sensor for r in results for c in r.cells):
+        classes += list(spec.sensor_faults)
     colors = colors or _colors([r.controller for r in results])
     fig, ax = plt.subplots(figsize=(12, 5.5))
     width = 0.8 / max(len(results), 1)
     x = np.arange(len(classes))
     for i, result in enumerate(results):
-        by_class = {c.fault_class: c.settled for c in result.cells}
+        by_class = {c.sensor or c.fault_class: c.settled for c in result.cells}
         stats = [by_class[c] for c in classes]
         ax.bar(
             x + (i - (len(results) - 1) / 2) * width,
@@ -76,7 +79,10 @@ def battery_bars(
         for xi, s in zip(x + (i - (len(results) - 1) / 2) * width, stats, strict=True):
             ax.text(xi, 100 * s.ci_high + 1, f"{100 * s.rate:.0f}", ha="center", va="bottom", fontsize=6)
     ax.set_xticks(x, classes)
-    ax.set_xlabel("held-out actuator fault class")
+    ax.set_xlabel(
+        "held-out fault class"
+        + (" (sensor classes on sign faults)" if len(classes) > len(spec.fault_classes) else "")
+    )
     ax.set_ylabel("settled rate (%)  [Wilson 95 % CI]")
     ax.set_ylim(0, 108)
     n = results[0].cells[0].n if results else 0
@@ -90,7 +96,9 @@ def battery_bars(
 
 def bias_wall(results: list[EvalResult], colors: dict[str, tuple] | None = None) -> Figure:
     """The additive-bias wall: every controller's gain_bias cell, settled vs operational."""
-    rows = [(r, next(c for c in r.cells if c.fault_class == "gain_bias")) for r in results]
+    rows = [
+        (r, next(c for c in r.cells if c.fault_class == "gain_bias" and c.sensor is None)) for r in results
+    ]
     colors = colors or _colors([r.controller for r in results])
     fig, ax = plt.subplots(figsize=(12, 0.55 * len(rows) + 2.0))
     y = np.arange(len(rows))[::-1]
@@ -388,6 +396,67 @@ def sensor_faults(
     return fig
 
 
+def has_onset(spec: BenchmarkSpec) -> bool:
+    """Whether the version's faults start mid-flight (``scftc-v2``)."""
+    return hasattr(spec.splits["test"], "onset_s")
+
+
+def onset_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """controller -> ``(onset_s (n,), settled (n,) bool)`` over its held-out actuator cells."""
+    out = {}
+    for r in study.battery.results:
+        onset, settled = [], []
+        for run in study.runs[r.controller]:
+            if run.cell.sensor is None:
+                onset.append(run.drawn().fault.onset_step * study.spec.dt_s)  # type: ignore[attr-defined]
+                settled.append(run.outcomes.settled)
+        out[r.controller] = (np.concatenate(onset), np.concatenate(settled))
+    return out
+
+
+def settled_vs_onset(
+    spec: BenchmarkSpec,
+    outcomes: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    privileged: Mapping[str, bool],
+    colors: dict[str, tuple] | None = None,
+    bins: int = 6,
+) -> Figure:
+    """Settled rate against the fault's onset time, per controller, pooled over the held-out
+    actuator classes (Wilson 95 % bands). An estimator that latched on the healthy plant and does
+    not notice the change fails more often the later the fault starts."""
+    colors = colors or _colors(list(outcomes))
+    parts = spec.splits["test"].onset_s.parts  # type: ignore[union-attr]
+    lo, hi = min(p.lo for p in parts), max(p.hi for p in parts)
+    edges = np.linspace(lo, hi, bins + 1)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for name, (onset, settled) in outcomes.items():
+        which = np.clip(np.searchsorted(edges, onset, side="left") - 1, 0, bins - 1)
+        k = np.array([int(settled[which == b].sum()) for b in range(bins)])
+        n = np.array([int((which == b).sum()) for b in range(bins)])
+        rate = np.where(n > 0, k / np.maximum(n, 1), np.nan)
+        band = np.array(
+            [wilson_interval(int(a), int(b)) if b else (np.nan, np.nan) for a, b in zip(k, n, strict=True)]
+        )
+        style = "--" if privileged.get(name) else "-"
+        ax.plot(
+            centres,
+            100 * rate,
+            style,
+            marker="o",
+            color=colors[name],
+            label=_label(name, privileged.get(name, False)),
+        )
+        ax.fill_between(centres, 100 * band[:, 0], 100 * band[:, 1], color=colors[name], alpha=0.08)
+    ax.set_xlabel("fault onset t_f (s), held-out range")
+    ax.set_ylabel("settled rate (%)  [Wilson 95 % band]")
+    ax.set_ylim(-2, 102)
+    ax.set_title(f"Settled rate against the onset of the fault (pooled over {', '.join(spec.fault_classes)})")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="controller")
+    ax.grid(alpha=0.3)
+    return fig
+
+
 def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``stem.png`` and ``stem.svg`` and close it."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -427,4 +496,7 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
             study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
         ),
     }
+    if has_onset(study.spec):
+        privileged = {r.controller: r.privileged for r in battery}
+        figures["settled_vs_onset"] = settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)
     return [p for stem, fig in figures.items() for p in save(fig, out_dir, stem)]

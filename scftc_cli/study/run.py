@@ -43,6 +43,21 @@ REGIME_RULE = (
 )
 
 
+REGIME_RULE_REDUNDANT = (
+    "controllable: three star-tracker heads outvote one bad head, the gyro carries the attitude "
+    "through an outage, and a gyro-bias step is observable through the heads: every sensor class "
+    "can in principle be fought from the observation."
+)
+
+
+def sensors_in_battery(spec: BenchmarkSpec) -> bool:
+    """Whether every controller flies the sensor classes as part of the battery: on a version with
+    noisy redundant sensors (``scftc-v2``) they are part of what a controller is judged on. On
+    ``scftc-v1`` the sensor table flies the deployed controller and the teacher, as the source
+    study's table did."""
+    return spec.sensors is not None
+
+
 class StudyError(ScftcError, RuntimeError):
     """A registered controller could not be loaded or flown; the study is incomplete."""
 
@@ -135,6 +150,8 @@ def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None
     (one batch per class and controller) and the sensor table."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
+    if sensors_in_battery(spec):
+        return len(entries) * (2 * n_classes + n_sensors) * spec.steps
     rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(entries)
     return rollouts * spec.steps
 
@@ -268,18 +285,33 @@ def run_study(
     battery_order = list(entries.values())
     preflight(battery_order)
     actuator_cells = select_cells(spec, "test", None, None)
-    runs = {e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress, runner) for e in battery_order}
-    battery = [_result(e, spec, runs[e.name]) for e in battery_order]
-
-    deployed, reason = choose_deployed(battery)
-    sensor_names = [n for n in (deployed, ORACLE_FOR_SENSORS) if n is not None and n in entries]
     sensor_cells = select_cells(spec, "test", None, "all")
-    sensor_results = []
-    for name in sensor_names:
-        sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress, runner)
-        runs[name] = runs[name] + sensor_runs
-        sensor_results.append(_result(entries[name], spec, sensor_runs))
     gate = spec.gates.settled_deg
+    if sensors_in_battery(spec):
+        cells = actuator_cells + sensor_cells
+        runs = {e.name: _fly(e, spec, cells, n_faults, n_seeds, progress, runner) for e in battery_order}
+        battery = [_result(e, spec, runs[e.name]) for e in battery_order]
+        sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]
+        deployed, reason = (
+            None,
+            "every controller flies the sensor classes on this version (part of its battery)",
+        )
+        regimes: dict[str, Regime] = {s: "controllable" for s in spec.sensor_faults}
+        rule = REGIME_RULE_REDUNDANT
+    else:
+        runs = {
+            e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress, runner) for e in battery_order
+        }
+        battery = [_result(e, spec, runs[e.name]) for e in battery_order]
+        deployed, reason = choose_deployed(battery)
+        sensor_names = [n for n in (deployed, ORACLE_FOR_SENSORS) if n is not None and n in entries]
+        sensor_results = []
+        for name in sensor_names:
+            sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress, runner)
+            runs[name] = runs[name] + sensor_runs
+            sensor_results.append(_result(entries[name], spec, sensor_runs))
+        regimes = {s: sensor_regime(s, gate) for s in spec.sensor_faults}
+        rule = REGIME_RULE
     return Study(
         spec=spec,
         battery=BatteryReport(
@@ -292,7 +324,8 @@ def run_study(
             deployed=deployed,
             deployed_reason=reason,
             gate_deg=gate,
-            regimes={s: sensor_regime(s, gate) for s in spec.sensor_faults},
+            regime_rule=rule,
+            regimes=regimes,
             results=sensor_results,
         ),
         trajectories=example_trajectories(battery_order, spec, progress),

@@ -8,6 +8,7 @@ from pydantic import BaseModel
 
 from scftc_cli.records import CellResult, EvalResult
 from scftc_cli.render import markdown_table, pct
+from scftc_cli.spec import DEFAULT_BENCHMARK
 from scftc_cli.study.run import Study
 
 
@@ -16,7 +17,12 @@ def _label(result: EvalResult) -> str:
 
 
 def _cells_by_class(result: EvalResult) -> dict[str, CellResult]:
-    return {c.fault_class: c for c in result.cells}
+    """A result's cells by column: the actuator class, or the sensor fault of a sensor cell."""
+    return {c.sensor or c.fault_class: c for c in result.cells}
+
+
+def _regenerate(version: str) -> str:
+    return "scftc reproduce" if version == DEFAULT_BENCHMARK else f"scftc reproduce --benchmark {version}"
 
 
 def battery_markdown(study: Study) -> str:
@@ -24,6 +30,8 @@ def battery_markdown(study: Study) -> str:
     spec, report = study.spec, study.battery
     n = report.n_faults * report.n_seeds
     classes = list(spec.fault_classes)
+    if any(c.sensor for r in report.results for c in r.cells):
+        classes += list(spec.sensor_faults)
     gates = spec.gates
     head = (
         f"# SCFTC battery ({report.benchmark_version}, held-out test split)\n\n"
@@ -33,8 +41,13 @@ def battery_markdown(study: Study) -> str:
         f"({gates.dwell_steps * spec.dt_s:g} s); operational: <= {gates.operational_deg} deg over "
         f"the same window; touch-once: <= {gates.touch_deg} deg at least once. Rates in % with Wilson 95 % "
         "intervals. Privileged controllers are oracles fed the true fault: upper bounds, listed apart and "
-        "never ranked with deployable ones.\n\n"
-        "Regenerate with `scftc reproduce`.\n\n"
+        "never ranked with deployable ones."
+        + (
+            f" Sensor classes ({', '.join(spec.sensor_faults)}) sit on the `{spec.sensor_base_class}` faults."
+            if len(classes) > len(spec.fault_classes)
+            else ""
+        )
+        + f"\n\nRegenerate with `{_regenerate(report.benchmark_version)}`.\n\n"
         "## Settled rate, % [Wilson 95 % CI]\n\n"
     )
     rows = []
@@ -48,7 +61,7 @@ def battery_markdown(study: Study) -> str:
             detail_rows.append(
                 [
                     _label(result),
-                    cell.fault_class,
+                    cell.fault_class if cell.sensor is None else f"{cell.fault_class} + {cell.sensor}",
                     f"{cell.settled.k}/{cell.n}",
                     pct(cell.settled),
                     pct(cell.operational),
@@ -83,11 +96,15 @@ def sensor_markdown(study: Study) -> str:
     n = report.n_faults * report.n_seeds
     head = (
         f"# Sensor faults ({report.benchmark_version}, on held-out `sign` faults)\n\n"
-        f"n = {n} episodes per cell, scored on the true state. Deployed controller: "
-        f"{report.deployed_reason}. The teacher is a privileged oracle (true actuator fault, same "
-        "corrupted observation).\n\n"
+        f"n = {n} episodes per cell, scored on the true state. "
+        + (
+            f"Deployed controller: {report.deployed_reason}. "
+            if report.deployed
+            else f"{report.deployed_reason}. "
+        )
+        + "The teacher is a privileged oracle (true actuator fault, same corrupted observation).\n\n"
         f"Regime rule. {report.regime_rule}\n\n"
-        "Regenerate with `scftc reproduce`.\n\n"
+        f"Regenerate with `{_regenerate(report.benchmark_version)}`.\n\n"
     )
     rows = []
     for sensor in study.spec.sensor_faults:
