@@ -1,27 +1,27 @@
 """``e2e_ppo``: one recurrent network that must identify the fault and control at once.
 
 Trained from scratch with PPO on the train split (``scftc train --controller e2e_ppo``, which
-uses sb3-contrib's ``RecurrentPPO``), then exported to the plain torch module below, so that
-evaluating it needs torch only. The policy is sb3-contrib's ``MlpLstmPolicy`` actor: an LSTM
-over the scaled observation and previous action, one tanh layer, a linear action head; deployed
-deterministically (the Gaussian's mean, clipped to [-1, 1]). The source study used a GRU; sb3-contrib
-offers only the LSTM, which is at least as expressive.
+uses sb3-contrib's ``RecurrentPPO``), then exported to plain weights that a numba kernel runs
+(``recurrent.policy_step``), so that evaluating it needs neither torch nor sb3. The policy is
+sb3-contrib's ``MlpLstmPolicy`` actor: an LSTM over the scaled observation and previous action,
+one tanh layer, a linear action head; deployed deterministically (the Gaussian's mean, clipped to
+[-1, 1]). The source study used a GRU; sb3-contrib offers only the LSTM, which is at least as
+expressive.
 
-Weights live in ``scftc_cli/weights/e2e_ppo.pt`` with a sidecar ``e2e_ppo.yaml`` (provenance).
+Weights live in ``scftc_cli/weights/e2e_ppo.npz`` with a sidecar ``e2e_ppo.yaml`` (provenance).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
-from torch import nn
 
+from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.params import WEIGHTS_DIR
-from scftc_cli.baselines.torch_runtime import inference_mode_threads
 from scftc_cli.errors import ScftcError
 from scftc_cli.protocol import Context, Controller
 
@@ -44,26 +44,65 @@ class PolicyConfig:
         return cls(lstm_hidden=int(d["lstm_hidden"]), net_arch=tuple(int(x) for x in d["net_arch"]))
 
 
-class RecurrentPolicy(nn.Module):
-    """The actor of sb3-contrib's ``MlpLstmPolicy``: ``(T, B, 9)`` scaled inputs -> mean actions
-    ``(T, B, 3)`` (unclipped) and the new LSTM state."""
+@dataclass(frozen=True, eq=False)
+class PolicyNet:
+    """The weights of the exported actor (``RecurrentPolicy`` in ``training/ppo.py``), laid out
+    for the kernel: float64 copies of the float32 arrays as trained, matrices transposed to
+    ``(in, out)``, one entry of ``w_mlp``/``b_mlp`` per tanh layer."""
 
-    def __init__(self, config: PolicyConfig) -> None:
-        super().__init__()
-        self.lstm = nn.LSTM(len(OBS_SCALE), config.lstm_hidden)
-        layers: list[nn.Module] = []
-        width = config.lstm_hidden
-        for units in config.net_arch:
-            layers += [nn.Linear(width, units), nn.Tanh()]
-            width = units
-        self.mlp = nn.Sequential(*layers)
-        self.action = nn.Linear(width, 3)
+    w_ih: np.ndarray
+    b_ih: np.ndarray
+    w_hh: np.ndarray
+    b_hh: np.ndarray
+    w_mlp: tuple[np.ndarray, ...]
+    b_mlp: tuple[np.ndarray, ...]
+    w_out: np.ndarray
+    b_out: np.ndarray
 
-    def forward(
-        self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None
-    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
-        y, state = self.lstm(x, state)
-        return self.action(self.mlp(y)), state
+    @classmethod
+    def from_state(cls, state: Mapping[str, np.ndarray], config: PolicyConfig) -> PolicyNet:
+        """From a ``RecurrentPolicy`` state dict as numpy arrays (the keys of the ``.npz`` file)."""
+        t, f = recurrent.transposed, recurrent.as_float64
+        layers = range(len(config.net_arch))  # the tanh layers sit at mlp.0, mlp.2, ...
+        return cls(
+            w_ih=t(state["lstm.weight_ih_l0"]),
+            b_ih=f(state["lstm.bias_ih_l0"]),
+            w_hh=t(state["lstm.weight_hh_l0"]),
+            b_hh=f(state["lstm.bias_hh_l0"]),
+            w_mlp=tuple(t(state[f"mlp.{2 * i}.weight"]) for i in layers),
+            b_mlp=tuple(f(state[f"mlp.{2 * i}.bias"]) for i in layers),
+            w_out=t(state["action.weight"]),
+            b_out=f(state["action.bias"]),
+        )
+
+    @property
+    def hidden(self) -> int:
+        return self.w_hh.shape[0]
+
+    def start(self, rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """The LSTM state ``(h, c)`` of ``rows`` fresh sequences."""
+        return np.zeros((rows, self.hidden)), np.zeros((rows, self.hidden))
+
+    def step(self, x: np.ndarray, state: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """Mean actions ``(B, 3)`` (unclipped) for the scaled inputs ``x`` ``(B, 9)``; advances
+        ``state`` in place."""
+        h, c = state
+        action = np.empty((x.shape[0], self.w_out.shape[1]))
+        recurrent.policy_step(
+            np.ascontiguousarray(x, dtype=np.float64),
+            h,
+            c,
+            action,
+            self.w_ih,
+            self.b_ih,
+            self.w_hh,
+            self.b_hh,
+            self.w_mlp,
+            self.b_mlp,
+            self.w_out,
+            self.b_out,
+        )
+        return action
 
 
 def policy_input(obs: np.ndarray, prev_action: np.ndarray) -> np.ndarray:
@@ -72,42 +111,36 @@ def policy_input(obs: np.ndarray, prev_action: np.ndarray) -> np.ndarray:
 
 
 def weights_path() -> Path:
-    return WEIGHTS_DIR / "e2e_ppo.pt"
+    return WEIGHTS_DIR / "e2e_ppo.npz"
 
 
-def save_policy(policy: RecurrentPolicy, config: PolicyConfig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    state = {k: v.detach().float().clone() for k, v in policy.state_dict().items()}
-    torch.save({"config": config.to_dict(), "state_dict": state}, path)
-    return path
+def save_policy(state: Mapping[str, np.ndarray], config: PolicyConfig, path: Path) -> Path:
+    """Write a ``RecurrentPolicy`` state dict (numpy, stored as float32) and ``config`` to the
+    ``.npz`` file ``path``."""
+    return recurrent.save_weights(path, dict(state), config.to_dict())
 
 
-def load_policy(path: Path | None = None) -> RecurrentPolicy:
-    """The committed e2e policy, in float64 for reproducible inference."""
+def load_policy(path: Path | None = None) -> PolicyNet:
+    """The committed e2e policy, ready for the kernel (float64)."""
     path = path or weights_path()
     if not path.exists():
         raise ScftcError(f"no weights at {path}; run `scftc train --controller e2e_ppo`")
-    inference_mode_threads()
-    blob = torch.load(path, map_location="cpu", weights_only=True)
-    policy = RecurrentPolicy(PolicyConfig.from_dict(blob["config"]))
-    policy.load_state_dict(blob["state_dict"])
-    return policy.double().eval()
+    state, doc = recurrent.load_weights(path)
+    return PolicyNet.from_state(state, PolicyConfig.from_dict(doc))
 
 
 class E2EPPO(Controller):
     """Runs the exported recurrent policy deterministically over the whole batch."""
 
-    def __init__(self, path: Path | None = None, policy: RecurrentPolicy | None = None) -> None:
-        self.policy = policy if policy is not None else load_policy(path)
+    def __init__(self, path: Path | None = None, net: PolicyNet | None = None) -> None:
+        self.net = net if net is not None else load_policy(path)
 
     def reset(self, n: int, context: Context) -> None:
-        self.state: tuple[torch.Tensor, torch.Tensor] | None = None
+        self.state = self.net.start(n)
         self.prev_action = np.zeros((n, 3))
 
-    @torch.no_grad()
     def act(self, obs: np.ndarray) -> np.ndarray:
-        x = torch.from_numpy(policy_input(obs, self.prev_action)).to(torch.float64)[None]
-        mean, self.state = self.policy(x, self.state)
-        command = np.clip(mean[0].numpy(), -1.0, 1.0)
+        mean = self.net.step(policy_input(obs, self.prev_action), self.state)
+        command = np.clip(mean, -1.0, 1.0)
         self.prev_action = command
         return command

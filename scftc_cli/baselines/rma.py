@@ -22,30 +22,30 @@ sees only bias-invariant features (first differences: ``ddW = theta da`` under a
 so a bias outside the train range cannot fake the authority it reports.
 
 The student's output layer is a least-squares fit whose weights and prior the GRU chooses
-(``ThetaStudent``): a plain regression head cannot answer outside the authorities it was trained
+(``StudentNet``): a plain regression head cannot answer outside the authorities it was trained
 on, and the held-out split's go below the train range by construction. Measured: the first,
 direct-regression student estimated held-out axes of ``|theta|`` 0.13-0.25 at ~0.27-0.36
 (``rma_dob`` 86.0 % settled on ``gain_bias``); the fit identifies them to a median 0.1 % (93.6 %).
 
-Weights live in ``scftc_cli/weights/<name>.pt`` with a sidecar ``<name>.yaml`` (provenance);
+The network (``ThetaStudent``, a torch module) is trained in ``training/rma.py``; evaluation runs
+it with the numba kernel ``recurrent.student_step`` and never imports torch. Weights live in
+``scftc_cli/weights/<name>.npz`` with a sidecar ``<name>.yaml`` (provenance);
 ``scftc train --controller rma_student|rma_dob`` regenerates them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
-import torch
-from torch import nn
-from torch.nn import functional
 
+from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.analytic import analytic_command, nominal_command
 from scftc_cli.baselines.observer import DisturbanceObserver, TorqueMeter
 from scftc_cli.baselines.params import WEIGHTS_DIR
-from scftc_cli.baselines.torch_runtime import inference_mode_threads
 from scftc_cli.errors import ScftcError
 from scftc_cli.protocol import Context, Controller
 
@@ -53,7 +53,9 @@ N_FEATURES = 12
 RATIO_EPS = 0.01  # regularizes the one-step ratio where the command was small
 RATIO_DIFF_EPS = 1e-4  # ... and the first-difference ratio where the command barely changed
 RATIO_CLIP = 4.0
-LOG_MAG_MIN, LOG_MAG_MAX = float(np.log(0.1)), float(np.log(3.0))  # train |theta| in [0.25, 1.875]
+# log 0.1 and log 3 (train |theta| in [0.25, 1.875]), correctly rounded: written out, because a
+# library's log may round differently on another CPU and move the clamp of every prior.
+LOG_MAG_MIN, LOG_MAG_MAX = -2.3025850929940455, 1.0986122886681098
 # Fixed input scaling (about 1 / std of each feature over early train-split steps): the
 # differences are small, and unscaled they train several times slower.
 FEATURE_SCALE = (5.0, 8.0, 15.0, 100.0, 13.0, 8.0, 3.0, 2.0, 8.0, 35.0, 1.0, 1.0)
@@ -66,7 +68,6 @@ RAW_PAIR, DIFF_PAIR = (0, 1, 10), (2, 3, 11)
 # Strength of the GRU's prior guess in units of the summed weighted x^2; about a tenth of the
 # excitation the latch asks for, so the data dominate by the time an axis can latch.
 PRIOR_WEIGHT = 0.01
-StudentState = tuple[torch.Tensor | None, torch.Tensor | float, torch.Tensor | float]
 
 
 @dataclass(frozen=True)
@@ -109,62 +110,114 @@ class StudentConfig:
         )
 
 
-class ThetaStudent(nn.Module):
-    """Per-axis GRU: features ``(B, T, N_FEATURES)`` -> ``theta_hat`` ``(B, T)``, with ``B`` the
-    number of (episode, axis) sequences.
+def student_scale(bias_invariant: bool) -> np.ndarray:
+    """The fixed input scaling, zero on ``BIASED_FEATURES`` for a bias-invariant student."""
+    scale = np.array(FEATURE_SCALE, dtype=np.float32)
+    if bias_invariant:
+        scale[list(BIASED_FEATURES)] = 0.0
+    return scale
 
-    The output is a least-squares fit whose sample weights and prior the GRU chooses:
+
+@dataclass(frozen=True, eq=False)
+class StudentNet:
+    """The weights of a ``ThetaStudent`` (``training/rma.py``), laid out for the numba kernel.
+
+    The student is a per-axis GRU whose output layer is a least-squares fit with sample weights and
+    prior chosen by the network:
 
         theta_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t
 
     with ``(x, y) = (a, dW)``, or ``(da, ddW)`` for a bias-invariant student (``y = theta x``
-    exactly in either case, up to the gyroscopic rounding), ``w_s >= 0`` a learned per-step
-    weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat`` a
-    learned prior guess of fixed strength ``PRIOR_WEIGHT``. The GRU decides which samples to trust
-    and what to say before the data are informative; the data, not the network's output range,
-    decide the size of the answer. A plain regression head cannot answer outside the ``|theta|``
-    it was trained on (the held-out split's authorities go below the train range by
-    construction, docs/benchmark.md); this one is equivariant to the authority's scale once the data
-    outweigh the prior.
+    exactly in either case, up to the gyroscopic rounding), ``w_s = softplus(.) >= 0`` a learned
+    per-step weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat``
+    a learned prior guess of fixed strength ``P = PRIOR_WEIGHT``. Weights are float64 copies of the
+    float32 arrays as trained (exact), matrices transposed to ``(in, out)``.
     """
 
-    scale: torch.Tensor  # a registered buffer
+    scale: np.ndarray
+    w_in: np.ndarray
+    b_in: np.ndarray
+    w_ih: np.ndarray
+    b_ih: np.ndarray
+    w_hh: np.ndarray
+    b_hh: np.ndarray
+    w_1: np.ndarray
+    b_1: np.ndarray
+    w_2: np.ndarray
+    b_2: np.ndarray
+    pair: tuple[int, int, int]
 
-    def __init__(self, hidden: int = 32, bias_invariant: bool = False) -> None:
-        super().__init__()
-        scale = torch.tensor(FEATURE_SCALE)
-        if bias_invariant:
-            scale[list(BIASED_FEATURES)] = 0.0
-        self.register_buffer("scale", scale)
-        self.pair = DIFF_PAIR if bias_invariant else RAW_PAIR
-        self.inp = nn.Linear(N_FEATURES, hidden)
-        self.gru = nn.GRU(hidden, hidden, batch_first=True)
-        self.head = nn.Sequential(nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 3))
+    @classmethod
+    def from_state(cls, state: Mapping[str, np.ndarray], bias_invariant: bool) -> StudentNet:
+        """From a ``ThetaStudent`` state dict as numpy arrays (the keys of the ``.npz`` file)."""
+        t, f = recurrent.transposed, recurrent.as_float64
+        return cls(
+            scale=f(state["scale"]),
+            w_in=t(state["inp.weight"]),
+            b_in=f(state["inp.bias"]),
+            w_ih=t(state["gru.weight_ih_l0"]),
+            b_ih=f(state["gru.bias_ih_l0"]),
+            w_hh=t(state["gru.weight_hh_l0"]),
+            b_hh=f(state["gru.bias_hh_l0"]),
+            w_1=t(state["head.0.weight"]),
+            b_1=f(state["head.0.bias"]),
+            w_2=t(state["head.2.weight"]),
+            b_2=f(state["head.2.bias"]),
+            pair=DIFF_PAIR if bias_invariant else RAW_PAIR,
+        )
 
-    def heads(
-        self, x: torch.Tensor, state: StudentState | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, StudentState]:
-        """``(sign_logit, log_magnitude, theta_hat, state)``, the first three ``(B, T)``: the
-        prior's two heads (magnitude clamped to ``[LOG_MAG_MIN, LOG_MAG_MAX]``) and the fit."""
-        h0, sxy0, sxx0 = state if state is not None else (None, 0.0, 0.0)
-        y, h = self.gru(torch.tanh(self.inp(x * self.scale)), h0)
-        out = self.head(y)
-        logit, log_mag = out[..., 0], out[..., 1].clamp(LOG_MAG_MIN, LOG_MAG_MAX)
-        prior = torch.tanh(0.5 * logit) * torch.exp(log_mag)
-        col_x, col_y, col_valid = self.pair
-        weight = functional.softplus(out[..., 2]) * x[..., col_valid]
-        xs, ys = x[..., col_x], x[..., col_y]
-        sxy = sxy0 + torch.cumsum(weight * xs * ys, dim=1)
-        sxx = sxx0 + torch.cumsum(weight * xs * xs, dim=1)
-        theta = (sxy + PRIOR_WEIGHT * prior) / (sxx + PRIOR_WEIGHT)
-        return logit, log_mag, theta, (h, sxy[:, -1:], sxx[:, -1:])
+    @property
+    def hidden(self) -> int:
+        return self.w_hh.shape[0]
 
-    def forward(
-        self, x: torch.Tensor, state: StudentState | None = None
-    ) -> tuple[torch.Tensor, StudentState]:
-        """``(theta_hat (B, T), state)``; pass ``state`` back in to continue the sequences."""
-        _, _, theta, state = self.heads(x, state)
-        return theta, state
+    def start(self, rows: int) -> StudentState:
+        """The state of ``rows`` fresh sequences."""
+        return StudentState(np.zeros((rows, self.hidden)), np.zeros((rows, 2)), np.zeros(rows))
+
+    def step(self, x: np.ndarray, state: StudentState, active: np.ndarray | None = None) -> np.ndarray:
+        """Advance ``state`` by the features ``x`` ``(B, N_FEATURES)`` (float64) of one step and
+        return ``theta_hat`` ``(B,)`` (``state.theta``, updated in place). Rows where ``active`` is
+        false are skipped: their hidden state, sums and ``theta_hat`` stay as they were."""
+        if active is None:
+            active = np.ones(x.shape[0], dtype=np.bool_)
+        recurrent.student_step(
+            np.ascontiguousarray(x, dtype=np.float64),
+            active,
+            self.scale,
+            state.h,
+            state.sums,
+            state.theta,
+            self.w_in,
+            self.b_in,
+            self.w_ih,
+            self.b_ih,
+            self.w_hh,
+            self.b_hh,
+            self.w_1,
+            self.b_1,
+            self.w_2,
+            self.b_2,
+            *self.pair,
+            PRIOR_WEIGHT,
+            LOG_MAG_MIN,
+            LOG_MAG_MAX,
+        )
+        return state.theta
+
+    def run(self, x: np.ndarray) -> np.ndarray:
+        """``theta_hat`` ``(B, T)`` of whole feature sequences ``x`` ``(B, T, N_FEATURES)``."""
+        state = self.start(x.shape[0])
+        return np.stack([self.step(x[:, k], state).copy() for k in range(x.shape[1])], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class StudentState:
+    """The recurrent state of ``B`` sequences: GRU ``h`` ``(B, H)``, the fit's running sums
+    ``(sum w x y, sum w x^2)`` ``(B, 2)`` and the last ``theta_hat`` ``(B,)``; updated in place."""
+
+    h: np.ndarray
+    sums: np.ndarray
+    theta: np.ndarray
 
 
 def axis_features(
@@ -205,32 +258,68 @@ def axis_features(
     return np.stack(cols, axis=-1).reshape(n * 3, N_FEATURES)
 
 
+class Latch:
+    """The per-axis persistence-of-excitation latch (``LatchConfig``) of a batch ``(n, 3)``.
+
+    Per step: ``theta = latch.update(raw, excitation)`` with the live estimate ``raw`` and the
+    summed squared command changes ``excitation``; axes that latch keep the estimate of the step
+    they latched at from then on (``latched``, ``frozen``).
+    """
+
+    def __init__(self, config: LatchConfig, n: int) -> None:
+        self.config = config
+        self.k = 0
+        self.history = np.zeros((config.window + 1, n, 3))  # ring buffer of raw estimates
+        self.latched = np.zeros((n, 3), dtype=bool)
+        self.frozen = np.zeros((n, 3))
+
+    def update(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
+        """Fold in step ``k``'s ``raw`` ``(n, 3)``; returns the estimate to use, latched where frozen."""
+        cfg, k = self.config, self.k
+        self.k += 1
+        self.history[k % (cfg.window + 1)] = raw
+        if k >= max(cfg.min_steps, cfg.window):
+            spread = self.history.max(axis=0) - self.history.min(axis=0)
+            still = spread <= cfg.tolerance * np.maximum(np.abs(raw), 0.1)
+            due = still | (k >= cfg.max_steps)
+            now = ~self.latched & due & (excitation >= cfg.min_excitation)
+            self.frozen = np.where(now, raw, self.frozen)
+            self.latched |= now
+        return np.where(self.latched, self.frozen, raw)
+
+
 class StudentEstimator:
     """Runs the student online over a batch and applies the latch.
 
     Per step: ``theta = est.estimate(obs)`` (``(n, 3)``, latched where frozen), then
     ``est.hold(command)`` with the command as applied. ``features`` keeps the last step's input
-    (the trainer records it), ``raw`` the live GRU estimate, ``latched`` which axes are frozen.
+    (the trainer records it), ``raw`` the live estimate, ``latched`` which axes are frozen. The
+    network is no longer evaluated on a frozen axis (nothing reads it), so there ``raw`` stays at
+    the value it latched with.
     """
 
-    def __init__(self, model: ThetaStudent, latch: LatchConfig, context: Context) -> None:
-        self.model, self.latch, self.context = model, latch, context
-        self.dtype = next(model.parameters()).dtype
+    def __init__(self, net: ThetaNet, latch: LatchConfig, context: Context) -> None:
+        self.net, self.context = net, context
         n = context.n
         self.meter = TorqueMeter(context)
-        self.state: StudentState | None = None
+        self.state = net.start(n * 3)
         self.k = 0
         self.last_command = np.zeros((n, 3))  # a_{k-1}, zero before the first step
         self.last_dw = np.zeros((n, 3))  # dW_{k-1}
         self.measured = False  # whether last_dw was measured (k >= 1)
         self.excitation = np.zeros((n, 3))
-        self.history = np.zeros((latch.window + 1, n, 3))  # ring buffer of raw estimates
-        self.latched = np.zeros((n, 3), dtype=bool)
-        self.frozen = np.zeros((n, 3))
+        self.latch = Latch(latch, n)
         self.raw = np.zeros((n, 3))
         self.features = np.zeros((n * 3, N_FEATURES))
 
-    @torch.no_grad()
+    @property
+    def latched(self) -> np.ndarray:
+        return self.latch.latched
+
+    @property
+    def frozen(self) -> np.ndarray:
+        return self.latch.frozen
+
     def estimate(self, obs: np.ndarray) -> np.ndarray:
         """``theta_hat`` ``(n, 3)`` after observing ``obs`` ``(n, 6)``."""
         n = obs.shape[0]
@@ -244,25 +333,10 @@ class StudentEstimator:
         self.excitation += da * da
         self.features = axis_features(obs, a_prev, dw, da, ddw, valid1, valid2)
         self.last_command, self.last_dw, self.measured = a_prev, dw, valid1 > 0.0
-        x = torch.from_numpy(self.features).to(self.dtype)[:, None, :]
-        theta, self.state = self.model(x, self.state)
-        self.raw = theta[:, 0].double().numpy().reshape(n, 3)
-        self._latch()
+        theta = self.net.step(self.features, self.state, ~self.latch.latched.reshape(-1))
+        self.raw = theta.reshape(n, 3).copy()
         self.k += 1
-        return np.where(self.latched, self.frozen, self.raw)
-
-    def _latch(self) -> None:
-        cfg = self.latch
-        slot = self.k % (cfg.window + 1)
-        self.history[slot] = self.raw
-        if self.k < max(cfg.min_steps, cfg.window):
-            return
-        spread = self.history.max(axis=0) - self.history.min(axis=0)
-        still = spread <= cfg.tolerance * np.maximum(np.abs(self.raw), 0.1)
-        due = still | (self.k >= cfg.max_steps)
-        now = ~self.latched & due & (self.excitation >= cfg.min_excitation)
-        self.frozen = np.where(now, self.raw, self.frozen)
-        self.latched |= now
+        return self.latch.update(self.raw, self.excitation)
 
     def hold(self, command: np.ndarray) -> None:
         """Record the command ``(n, 3)`` applied over the coming step."""
@@ -270,28 +344,37 @@ class StudentEstimator:
 
 
 def weights_path(name: str) -> Path:
-    return WEIGHTS_DIR / f"{name}.pt"
+    return WEIGHTS_DIR / f"{name}.npz"
 
 
-def save_student(model: ThetaStudent, config: StudentConfig, path: Path) -> Path:
-    """Write the weights (float32 state dict + config) to ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    state = {k: v.detach().float().clone() for k, v in model.state_dict().items()}
-    torch.save({"config": config.to_dict(), "state_dict": state}, path)
-    return path
+def save_student(state: Mapping[str, np.ndarray], config: StudentConfig, path: Path) -> Path:
+    """Write a ``ThetaStudent`` state dict (numpy, stored as float32) and ``config`` to the
+    ``.npz`` file ``path``."""
+    return recurrent.save_weights(path, dict(state), config.to_dict())
 
 
-def load_student(name: str, path: Path | None = None) -> tuple[ThetaStudent, StudentConfig]:
-    """The committed student ``name`` (in float64 for reproducible inference)."""
+def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
+    """The committed student ``name``, ready for the kernel (float64)."""
     path = path or weights_path(name)
     if not path.exists():
         raise ScftcError(f"no weights at {path}; run `scftc train --controller {name}`")
-    inference_mode_threads()
-    blob = torch.load(path, map_location="cpu", weights_only=True)
-    config = StudentConfig.from_dict(blob["config"])
-    model = ThetaStudent(config.hidden, config.bias_invariant)
-    model.load_state_dict(blob["state_dict"])
-    return model.double().eval(), config
+    state, doc = recurrent.load_weights(path)
+    config = StudentConfig.from_dict(doc)
+    net = StudentNet.from_state(state, config.bias_invariant)
+    if net.hidden != config.hidden or net.scale.shape != (N_FEATURES,):
+        raise ScftcError(f"{path}: the weights do not have the shape its config describes")
+    return net, config
+
+
+class ThetaNet(Protocol):
+    """What the estimator needs of a student network: ``StudentNet`` (the numba kernel, deployed)
+    or the trainer's torch module in float64 (``training/rma.py``)."""
+
+    def start(self, rows: int) -> Any:
+        """The state of ``rows`` fresh sequences."""
+
+    def step(self, x: np.ndarray, state: Any, active: np.ndarray | None = None) -> np.ndarray:
+        """``theta_hat`` ``(B,)`` after the features ``x`` ``(B, N_FEATURES)`` of one step."""
 
 
 class StudentController(Controller):
@@ -301,18 +384,15 @@ class StudentController(Controller):
     name = "rma_student"
 
     def __init__(
-        self,
-        path: Path | None = None,
-        model: ThetaStudent | None = None,
-        config: StudentConfig | None = None,
+        self, path: Path | None = None, net: ThetaNet | None = None, config: StudentConfig | None = None
     ) -> None:
-        if model is None or config is None:
-            model, config = load_student(self.name, path)
-        self.model, self.config = model, config
+        if net is None or config is None:
+            net, config = load_student(self.name, path)
+        self.net, self.config = net, config
 
     def reset(self, n: int, context: Context) -> None:
         self.context = context
-        self.estimator = StudentEstimator(self.model, self.config.latch, context)
+        self.estimator = StudentEstimator(self.net, self.config.latch, context)
         self.observer = DisturbanceObserver(n, self.config.observer_gain)
         self.beta_hat = np.zeros((n, 3))
 
@@ -331,12 +411,12 @@ class StudentController(Controller):
 
 
 class RMAStudent(StudentController):
-    """The RMA student; weights ``scftc_cli/weights/rma_student.pt``."""
+    """The RMA student; weights ``scftc_cli/weights/rma_student.npz``."""
 
     name = "rma_student"
 
 
 class RMADob(StudentController):
-    """The gain student composed with the disturbance observer; weights ``rma_dob.pt``."""
+    """The gain student composed with the disturbance observer; weights ``rma_dob.npz``."""
 
     name = "rma_dob"

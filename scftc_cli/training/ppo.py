@@ -2,9 +2,11 @@
 
 The agent is trained from scratch on the vectorized environment (train-split ``sign``, ``gain``
 and ``gain_bias`` faults, reward shaped on the measured error and rates; ``envs/attitude.py``),
-then its actor is exported to the plain torch ``RecurrentPolicy`` that ``scftc eval`` runs,
-and the export is checked against sb3's own deterministic ``predict`` before it is saved.
-Needs the optional extra ``rl`` (``gymnasium``, ``sb3-contrib``); evaluation does not.
+then its actor is exported to the plain torch ``RecurrentPolicy`` and saved as ``.npz`` weights,
+which ``scftc eval`` runs with a numba kernel (``PolicyNet`` in ``baselines/ppo.py``); that deployed
+form is checked against sb3's own deterministic ``predict`` before it is saved.
+Needs the optional extra ``rl`` (``gymnasium``, ``sb3-contrib``); evaluation needs neither them
+nor torch.
 """
 
 from __future__ import annotations
@@ -16,13 +18,14 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch import nn
 
 from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.ppo import (
     E2EPPO,
     OBS_SCALE,
     PolicyConfig,
-    RecurrentPolicy,
+    PolicyNet,
     save_policy,
     weights_path,
 )
@@ -30,6 +33,39 @@ from scftc_cli.errors import ScftcError
 from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
 CLASSES = ("sign", "gain", "gain_bias")
+
+
+class RecurrentPolicy(nn.Module):
+    """The actor of sb3-contrib's ``MlpLstmPolicy``: ``(T, B, 9)`` scaled inputs -> mean actions
+    ``(T, B, 3)`` (unclipped) and the new LSTM state. Evaluation runs its weights with the numba
+    kernel (``PolicyNet``)."""
+
+    def __init__(self, config: PolicyConfig) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(len(OBS_SCALE), config.lstm_hidden)
+        layers: list[nn.Module] = []
+        width = config.lstm_hidden
+        for units in config.net_arch:
+            layers += [nn.Linear(width, units), nn.Tanh()]
+            width = units
+        self.mlp = nn.Sequential(*layers)
+        self.action = nn.Linear(width, 3)
+
+    def forward(
+        self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None
+    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        y, state = self.lstm(x, state)
+        return self.action(self.mlp(y)), state
+
+
+def numpy_state(policy: RecurrentPolicy) -> dict[str, np.ndarray]:
+    """``policy``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
+    return {k: v.detach().float().cpu().numpy().copy() for k, v in policy.state_dict().items()}
+
+
+def policy_net(policy: RecurrentPolicy, config: PolicyConfig) -> PolicyNet:
+    """The deployed (numba) form of ``policy``'s weights (rounded to float32, as saved)."""
+    return PolicyNet.from_state(numpy_state(policy), config)
 
 
 @dataclass(frozen=True)
@@ -70,7 +106,10 @@ def _sb3_vec_env(num_envs: int, seed: int) -> Any:
 
     class Adapter(VecEnv):
         def __init__(self) -> None:
-            self.venv = AttitudeFTCVectorEnv(num_envs, "train", CLASSES, include_prev_action=True)
+            # per_episode: the random stream the committed weights were trained on
+            self.venv = AttitudeFTCVectorEnv(
+                num_envs, "train", CLASSES, include_prev_action=True, sampler="per_episode"
+            )
             space = self.venv.single_observation_space
             assert isinstance(space, spaces.Box)
             obs_space = spaces.Box(space.low * scale, space.high * scale, dtype=np.float32)
@@ -123,28 +162,26 @@ def export_policy(model: Any, config: PolicyConfig) -> RecurrentPolicy:
     return policy.eval()
 
 
-def check_export(model: Any, policy: RecurrentPolicy, steps: int = 50) -> float:
-    """Largest difference between sb3's deterministic ``predict`` and the export, over ``steps``
-    steps of a few train episodes (both fed the same observations)."""
+def check_export(model: Any, net: PolicyNet, steps: int = 50) -> float:
+    """Largest difference between sb3's deterministic ``predict`` and the deployed export, over
+    ``steps`` steps of a few train episodes (both fed the same observations)."""
     env = _sb3_vec_env(4, seed=12345)
     obs, state = env.reset(), None
     starts = np.ones(4, dtype=bool)
-    mine: tuple[torch.Tensor, torch.Tensor] | None = None
+    mine = net.start(4)
     worst = 0.0
     for _ in range(steps):
         action, state = model.predict(obs, state=state, episode_start=starts, deterministic=True)
-        with torch.no_grad():
-            mean, mine = policy(torch.from_numpy(obs)[None], mine)
-        worst = max(worst, float(np.max(np.abs(np.clip(mean[0].numpy(), -1, 1) - action))))
+        mean = net.step(obs.astype(np.float64), mine)
+        worst = max(worst, float(np.max(np.abs(np.clip(mean, -1, 1) - action))))
         obs, _, done, _ = env.step(action)
         starts = done
     return worst
 
 
-def settled_rate(policy: RecurrentPolicy, n_faults: int, n_seeds: int) -> float:
+def settled_rate(net: PolicyNet, n_faults: int, n_seeds: int) -> float:
     """Mean settled rate over the pinned *train* cells of ``CLASSES``."""
-    frozen = policy.double().eval()
-    rates = train_settled_rates(lambda: E2EPPO(policy=frozen), CLASSES, n_faults, n_seeds)
+    rates = train_settled_rates(lambda: E2EPPO(net=net), CLASSES, n_faults, n_seeds)
     return float(np.mean(list(rates.values())))
 
 
@@ -210,15 +247,16 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
         )
         model.learn(total_timesteps=budget.total_timesteps, callback=Progress())
         policy = export_policy(model, config)
-        mismatch = check_export(model, policy)
+        net = policy_net(policy, config)
+        mismatch = check_export(model, net)
         if mismatch > 1e-5:
             raise ScftcError(f"exported e2e_ppo policy disagrees with sb3 by {mismatch:.2e}")
         request.on_progress(1.0, "scoring on the pinned train cells")
-        train_rate = settled_rate(policy, budget.eval_faults, budget.eval_seeds)
+        train_rate = settled_rate(net, budget.eval_faults, budget.eval_seeds)
     finally:
         torch.set_num_threads(threads)
     out = request.out or weights_path()
-    save_policy(policy, config, out)
+    save_policy(numpy_state(policy), config, out)
     wall_s = time.monotonic() - start
     provenance = request.provenance(
         train_rate,

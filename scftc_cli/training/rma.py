@@ -9,6 +9,11 @@ aggregated in a replay buffer and the student's least-squares fit regresses the 
 loop, so the estimate it learns is the one the observer composes with, and reads only features
 that a constant bias cannot shift (``BIASED_FEATURES`` in ``baselines/rma.py``).
 
+The network is the torch module ``ThetaStudent`` (autograd). The trainer's rollouts (DAgger
+collection, checkpoint choice, the reported score) fly that module in float64 (``TorchStudentNet``),
+exactly as when the committed weights were trained, so `scftc train` regenerates them bit for bit;
+evaluation flies the same weights on the numba kernel (``StudentNet``, equal to ~1e-15, identical
+gates). The kept checkpoint is written as ``.npz``.
 Nothing here sees the test split; the checkpoint kept is the best on pinned *train* cells.
 """
 
@@ -21,15 +26,22 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from torch import nn
 from torch.nn import functional
 
 from scftc_cli.baselines.params import save_params
 from scftc_cli.baselines.rma import (
+    DIFF_PAIR,
+    LOG_MAG_MAX,
+    LOG_MAG_MIN,
+    N_FEATURES,
+    PRIOR_WEIGHT,
+    RAW_PAIR,
     LatchConfig,
     StudentConfig,
     StudentController,
-    ThetaStudent,
     save_student,
+    student_scale,
     weights_path,
 )
 from scftc_cli.protocol import Context
@@ -40,6 +52,98 @@ from scftc_cli.spec import V1
 from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
 OBSERVER_GAIN = 0.1  # lambda ~ 0.1 keeps the observer pole inside the envelope
+TorchState = tuple[torch.Tensor | None, torch.Tensor | float, torch.Tensor | float]
+
+
+class ThetaStudent(nn.Module):
+    """Per-axis GRU: features ``(B, T, N_FEATURES)`` -> ``theta_hat`` ``(B, T)``, with ``B`` the
+    number of (episode, axis) sequences; the network that ``StudentNet`` (``baselines/rma.py``)
+    runs in evaluation.
+
+    The output is a least-squares fit whose sample weights and prior the GRU chooses:
+
+        theta_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t
+
+    with ``(x, y) = (a, dW)``, or ``(da, ddW)`` for a bias-invariant student (``y = theta x``
+    exactly in either case, up to the gyroscopic rounding), ``w_s >= 0`` a learned per-step
+    weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat`` a
+    learned prior guess of fixed strength ``PRIOR_WEIGHT``. The GRU decides which samples to trust
+    and what to say before the data are informative; the data, not the network's output range,
+    decide the size of the answer. A plain regression head cannot answer outside the ``|theta|``
+    it was trained on (the held-out split's authorities go below the train range by
+    construction, docs/benchmark.md); this one is equivariant to the authority's scale once the data
+    outweigh the prior.
+    """
+
+    scale: torch.Tensor  # a registered buffer
+
+    def __init__(self, hidden: int = 32, bias_invariant: bool = False) -> None:
+        super().__init__()
+        self.register_buffer("scale", torch.from_numpy(student_scale(bias_invariant)))
+        self.pair = DIFF_PAIR if bias_invariant else RAW_PAIR
+        self.inp = nn.Linear(N_FEATURES, hidden)
+        self.gru = nn.GRU(hidden, hidden, batch_first=True)
+        self.head = nn.Sequential(nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 3))
+
+    def heads(
+        self, x: torch.Tensor, state: TorchState | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, TorchState]:
+        """``(sign_logit, log_magnitude, theta_hat, state)``, the first three ``(B, T)``: the
+        prior's two heads (magnitude clamped to ``[LOG_MAG_MIN, LOG_MAG_MAX]``) and the fit."""
+        h0, sxy0, sxx0 = state if state is not None else (None, 0.0, 0.0)
+        y, h = self.gru(torch.tanh(self.inp(x * self.scale)), h0)
+        out = self.head(y)
+        logit, log_mag = out[..., 0], out[..., 1].clamp(LOG_MAG_MIN, LOG_MAG_MAX)
+        prior = torch.tanh(0.5 * logit) * torch.exp(log_mag)
+        col_x, col_y, col_valid = self.pair
+        weight = functional.softplus(out[..., 2]) * x[..., col_valid]
+        xs, ys = x[..., col_x], x[..., col_y]
+        sxy = sxy0 + torch.cumsum(weight * xs * ys, dim=1)
+        sxx = sxx0 + torch.cumsum(weight * xs * xs, dim=1)
+        theta = (sxy + PRIOR_WEIGHT * prior) / (sxx + PRIOR_WEIGHT)
+        return logit, log_mag, theta, (h, sxy[:, -1:], sxx[:, -1:])
+
+    def forward(self, x: torch.Tensor, state: TorchState | None = None) -> tuple[torch.Tensor, TorchState]:
+        """``(theta_hat (B, T), state)``; pass ``state`` back in to continue the sequences."""
+        _, _, theta, state = self.heads(x, state)
+        return theta, state
+
+
+def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
+    """``module``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
+    return {k: v.detach().float().cpu().numpy().copy() for k, v in module.state_dict().items()}
+
+
+@dataclass
+class TorchStudentState:
+    """The torch module's recurrent state and the last ``theta_hat`` ``(B,)``."""
+
+    torch_state: TorchState | None
+    theta: np.ndarray
+
+
+class TorchStudentNet:
+    """A frozen float64 copy of ``model``, stepped like ``StudentNet`` (``baselines.rma.ThetaNet``).
+
+    Every row is advanced every step (latched axes too; nothing reads them), as the trainer did
+    when the committed weights were made: the numba kernel agrees with this to ~1e-15, but a
+    400-step closed loop with a latch can turn that into a different latch step in rare episodes,
+    hence different training data, and the weights must regenerate bit for bit.
+    """
+
+    def __init__(self, model: ThetaStudent) -> None:
+        self.model = copy.deepcopy(model).double().eval()
+
+    def start(self, rows: int) -> TorchStudentState:
+        return TorchStudentState(None, np.zeros(rows))
+
+    @torch.no_grad()
+    def step(self, x: np.ndarray, state: TorchStudentState, active: np.ndarray | None = None) -> np.ndarray:
+        theta, state.torch_state = self.model(
+            torch.from_numpy(x).to(torch.float64)[:, None, :], state.torch_state
+        )
+        state.theta = theta[:, 0].double().numpy()
+        return state.theta
 
 
 @dataclass(frozen=True)
@@ -94,8 +198,8 @@ class _DaggerController(StudentController):
 
     privileged = True
 
-    def __init__(self, model: ThetaStudent, config: StudentConfig, teacher_mask: np.ndarray) -> None:
-        super().__init__(model=model, config=config)
+    def __init__(self, net: TorchStudentNet, config: StudentConfig, teacher_mask: np.ndarray) -> None:
+        super().__init__(net=net, config=config)
         self.teacher_mask = teacher_mask[:, None]
         self.recorded: list[np.ndarray] = []
 
@@ -116,10 +220,8 @@ def settled_rate(
     model: ThetaStudent, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
 ) -> float:
     """Mean settled rate over the pinned *train* cells of ``classes``."""
-    frozen = copy.deepcopy(model).double().eval()
-    rates = train_settled_rates(
-        lambda: StudentController(model=frozen, config=config), classes, n_faults, n_seeds
-    )
+    net = TorchStudentNet(model)
+    rates = train_settled_rates(lambda: StudentController(net=net, config=config), classes, n_faults, n_seeds)
     return float(np.mean(list(rates.values())))
 
 
@@ -167,7 +269,7 @@ def train_student(request: TrainRequest) -> TrainReport:
             p_teacher = max(0.0, 1.0 - it / max(1.0, budget.teacher_fraction * budget.iterations))
             episodes = sample_episodes(rng, budget.episodes, "train", classes)
             mask = rng.random(budget.episodes) < p_teacher
-            collector = _DaggerController(copy.deepcopy(model).double().eval(), config, mask)
+            collector = _DaggerController(TorchStudentNet(model), config, mask)
             rollout(collector, episodes)
             x = torch.from_numpy(np.stack(collector.recorded, axis=1))  # (3n, T, F)
             y = torch.from_numpy(episodes.fault.theta.reshape(-1).astype(np.float32))
@@ -198,7 +300,7 @@ def train_student(request: TrainRequest) -> TrainReport:
     finally:
         torch.set_num_threads(threads)
     out = request.out or weights_path(name)
-    save_student(model, config, out)
+    save_student(numpy_state(model), config, out)
     wall_s = time.monotonic() - start
     provenance = request.provenance(
         train_rate,

@@ -12,7 +12,8 @@ from scftc_cli.baselines.analytic import analytic_command, nominal_command
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.baselines.observer import TorqueMeter
 from scftc_cli.baselines.params import WEIGHTS_DIR
-from scftc_cli.baselines.rma import StudentConfig, StudentController, ThetaStudent, load_student
+from scftc_cli.baselines.recurrent import load_weights
+from scftc_cli.baselines.rma import StudentConfig, StudentController, load_student
 from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.protocol import Context
 from scftc_cli.registry import make_controller
@@ -20,7 +21,6 @@ from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.v1 import public_context
 from scftc_cli.sim.v1.faults import ActuatorFault, RigidEpisodes, draw_episodes
 from scftc_cli.spec import V1
-from scftc_cli.training.rma import OBSERVER_GAIN
 
 LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
 
@@ -43,8 +43,8 @@ class _Recording(StudentController):
 
 @pytest.mark.parametrize("name", ["rma_student", "rma_dob"])
 def test_student_estimate_moves_toward_true_theta_on_held_out_faults(name: str) -> None:
-    model, config = load_student(name)
-    controller = _Recording(model=model, config=config)
+    net, config = load_student(name)
+    controller = _Recording(net=net, config=config)
     episodes = draw_episodes("test", "gain", n_faults=10, n_seeds=2)
     rollout(controller, episodes)
     theta_hat = np.stack(controller.estimates, axis=1)  # (n, steps, 3)
@@ -74,16 +74,16 @@ def test_student_identifies_authorities_far_outside_the_train_range(name: str) -
         sigma0=rng.uniform(-0.5, 0.5, (n, 3)),
         omega0_rad_s=rng.uniform(-0.02, 0.02, (n, 3)),
     )
-    model, config = load_student(name)
-    controller = _Recording(model=model, config=config)
+    net, config = load_student(name)
+    controller = _Recording(net=net, config=config)
     rollout(controller, episodes)
     final = controller.estimates[-1]
     assert np.all(np.abs(final / gains - 1.0) < 0.05), final
 
 
 def test_latch_freezes_the_estimate() -> None:
-    model, config = load_student("rma_student")
-    controller = _Recording(model=model, config=config)
+    net, config = load_student("rma_student")
+    controller = _Recording(net=net, config=config)
     rollout(controller, draw_episodes("test", "sign", n_faults=5, n_seeds=2))
     theta_hat = np.stack(controller.estimates, axis=1)
     latched = np.stack(controller.latched, axis=1)
@@ -103,7 +103,8 @@ class _WrongGainWithObserver(StudentController):
     privileged = True  # only to construct the wrong estimate from the truth
 
     def __init__(self, factor: float) -> None:
-        super().__init__(model=ThetaStudent(), config=StudentConfig(observer_gain=OBSERVER_GAIN))
+        net, config = load_student("rma_dob")  # built but never asked: the estimate is the wrong one
+        super().__init__(net=net, config=StudentConfig(observer_gain=config.observer_gain))
         self.factor = factor
 
     def reset(self, n: int, context: Context) -> None:
@@ -178,8 +179,13 @@ def test_vector_env_matches_the_benchmark_horizon_and_is_seeded() -> None:
 
 @pytest.mark.parametrize("name", LEARNED)
 def test_committed_weights_load_with_provenance(name: str) -> None:
-    assert (WEIGHTS_DIR / f"{name}.pt").stat().st_size < 1_000_000
+    path = WEIGHTS_DIR / f"{name}.npz"
+    assert path.stat().st_size < 1_000_000
+    arrays, config = load_weights(path)
+    assert arrays and all(a.dtype == np.float32 and np.all(np.isfinite(a)) for a in arrays.values())
     doc = yaml.safe_load((WEIGHTS_DIR / f"{name}.yaml").read_text())
+    assert doc["params"]["weights_file"] == path.name
+    assert doc["params"]["config"] == config  # the sidecar describes the weights it sits beside
     prov = doc["provenance"]
     assert prov["command"].startswith(f"scftc train --controller {name}")
     assert prov["budget"] == "full" and isinstance(prov["seed"], int)
@@ -198,17 +204,18 @@ def test_eval_is_deterministic(name: str) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("name", LEARNED)
 def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path) -> None:
-    import torch
-
+    pytest.importorskip("torch")
     from scftc_cli.training import TrainRequest, get_trainer
 
     if name == "e2e_ppo":
         pytest.importorskip("sb3_contrib")
     paths = []
     for run in ("a", "b"):
-        out = tmp_path / run / f"{name}.pt"
+        out = tmp_path / run / f"{name}.npz"
         report = get_trainer(name)(TrainRequest(controller=name, seed=1, budget="quick", out=out))
         assert report.artifact == out and out.with_suffix(".yaml").exists()
         paths.append(out)
-    a, b = (torch.load(p, weights_only=True)["state_dict"] for p in paths)
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    (a, config_a), (b, config_b) = (load_weights(p) for p in paths)
+    assert config_a == config_b and a.keys() == b.keys()
+    assert all(a[k].dtype == np.float32 and np.array_equal(a[k], b[k]) for k in a)
+    assert paths[0].read_bytes() == paths[1].read_bytes()  # the same weights, the same bytes
