@@ -1,37 +1,75 @@
-# The two commands of the README quick start. Each sets up .venv on first use.
-#   make reproduce   -> the study's battery and sensor tables and figures, in results/
-#   make test        -> lint, format and type checks, schema check, the test suite, leaderboard verify
-#                       (what .ci/run runs)
+# The two commands of the README quick start. Each sets up what it needs on first use.
+#   make reproduce   -> both versions' battery and sensor tables and figures, in results/scftc-v1/ and
+#                       results/scftc-v2/ (base install: no torch)
+#   make test        -> system packages, full install, lint, format and type checks, schema check,
+#                       the test suite, leaderboard verify (what .ci/run runs)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+PIP := $(BIN)/pip install --quiet --disable-pip-version-check
+SOURCES := scftc_cli tests benchmarks examples
 
-.PHONY: setup reproduce test lint bench
+# command:Debian package pairs the test suite needs (sandbox, seccomp, browser test).
+SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromium chromedriver:chromium-driver
 
-setup: $(VENV)/.installed
+.PHONY: setup setup-dev sysdeps reproduce test lint bench
 
-# torch==2.13.0 first: a looser torch requirement could pull a multi-GB CUDA build.
-$(VENV)/.installed: pyproject.toml
+setup: $(VENV)/.installed-base
+
+setup-dev: sysdeps $(VENV)/.installed-dev
+
+$(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --quiet --disable-pip-version-check torch==2.13.0
-	$(BIN)/pip install --quiet --disable-pip-version-check -e '.[dev,basilisk,rl]'
+
+# The package and its run-time dependencies: enough to evaluate every controller and reproduce the study.
+$(VENV)/.installed-base: pyproject.toml | $(VENV)/bin/python
+	$(PIP) -e .
 	touch $@
 
-reproduce: setup
-	$(BIN)/scftc reproduce --out results/
+# Everything: torch==2.13.0 first (a looser torch requirement could pull a multi-GB CUDA build),
+# then training, RL, Basilisk, Dask and the developer tools.
+$(VENV)/.installed-dev: pyproject.toml | $(VENV)/bin/python
+	$(PIP) torch==2.13.0
+	$(PIP) -e '.[dev,learn,rl,basilisk,dask]'
+	touch $(VENV)/.installed-base $@
 
-test: setup
-	$(BIN)/ruff check scftc_cli tests benchmarks
-	$(BIN)/ruff format --check scftc_cli tests benchmarks
+# Installs the missing Debian packages when run as root; otherwise names the command to run.
+sysdeps:
+	@missing=""; \
+	for pair in $(SYSTEM_PACKAGES); do \
+	  probe=$${pair%%:*}; package=$${pair#*:}; \
+	  case $$probe in \
+	    *.so*) /sbin/ldconfig -p 2>/dev/null | grep -q "$$probe" || missing="$$missing $$package";; \
+	    *) command -v $$probe >/dev/null 2>&1 || missing="$$missing $$package";; \
+	  esac; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing system packages:$$missing"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	  else \
+	    echo "error: missing system packages:$$missing; install them with: sudo apt-get install -y$$missing" >&2; \
+	    exit 1; \
+	  fi; \
+	fi
+
+reproduce: setup
+	$(BIN)/scftc reproduce
+	$(BIN)/scftc reproduce --benchmark scftc-v2
+
+test: setup-dev
+	$(BIN)/ruff check $(SOURCES)
+	$(BIN)/ruff format --check $(SOURCES)
 	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
 	$(BIN)/pytest -q
 	$(BIN)/scftc leaderboard verify
+	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
 
-lint: setup
-	$(BIN)/ruff check scftc_cli tests benchmarks
-	$(BIN)/ruff format --check scftc_cli tests benchmarks
+lint: setup-dev
+	$(BIN)/ruff check $(SOURCES)
+	$(BIN)/ruff format --check $(SOURCES)
 	$(BIN)/mypy
 
-bench: setup
+bench: setup-dev
 	$(BIN)/python benchmarks/throughput.py

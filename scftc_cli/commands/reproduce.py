@@ -22,7 +22,12 @@ from scftc_cli.commands.common import (
 
 @exits_cleanly
 def reproduce_command(
-    out: Annotated[Path, typer.Option(help="Folder for the tables and figures.")] = Path("results"),
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder for the tables and figures [default: results/<benchmark>].", show_default=False
+        ),
+    ] = None,
     benchmark: BenchmarkOption = DEFAULT,
     n_faults: Annotated[
         int | None,
@@ -47,6 +52,7 @@ def reproduce_command(
     from scftc_cli.study.tables import write_tables
 
     spec = get_spec(benchmark)
+    out = Path("results") / spec.version if out is None else out
     start = time.perf_counter()
     with cluster(workers, scheduler) as runner, progress_bar("reproduce", planned_steps(spec)) as progress:
         study = run_study(spec, n_faults, n_seeds, progress=progress, runner=runner)
