@@ -50,7 +50,8 @@ def test_unknown_name_suggests_the_closest():
 
 def test_listing_the_battery_imports_no_controller_module():
     code = (
-        "import sys; from scftc_cli.registry import registry; [registry(v) for v in ('scftc-v1', 'scftc-v2')]; "
+        "import sys; from scftc_cli.registry import registry; "
+        "[registry(v) for v in ('scftc-v1', 'scftc-v2')]; "
         "assert not [m for m in sys.modules if m.startswith('scftc_cli.baselines')], sys.modules.keys(); "
         "assert 'torch' not in sys.modules"
     )
