@@ -425,7 +425,7 @@ def settled_vs_onset(
     actuator classes (Wilson 95 % bands). An estimator that latched on the healthy plant and does
     not notice the change fails more often the later the fault starts."""
     colors = colors or _colors(list(outcomes))
-    parts = spec.splits["test"].onset_s.parts  # type: ignore[union-attr]
+    parts = spec.splits["test"].onset_s.parts
     lo, hi = min(p.lo for p in parts), max(p.hi for p in parts)
     edges = np.linspace(lo, hi, bins + 1)
     centres = 0.5 * (edges[:-1] + edges[1:])
