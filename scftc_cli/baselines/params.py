@@ -63,6 +63,20 @@ def save_params(
     return path
 
 
+def v2_params_path(controller: str) -> Path:
+    """The committed tuned parameters of ``scftc-v2`` controller ``controller``."""
+    return PARAMS_DIR / "v2" / f"{controller}.yaml"
+
+
+def load_v2_params(controller: str) -> dict[str, Any]:
+    """The ``params`` mapping of ``controller``'s committed ``scftc-v2`` params file."""
+    path = v2_params_path(controller)
+    if not path.exists():
+        command = f"scftc train --benchmark scftc-v2 --controller {controller} --in-place"
+        raise ScftcError(f"no tuned parameters at {path}; run `{command}`")
+    return load_params(controller, path).params
+
+
 def load_params(controller: str, path: Path | None = None) -> ParamsFile:
     """Read and validate a params file; a missing one names the command that makes it."""
     path = path or params_path(controller)

@@ -26,8 +26,10 @@ class CompareFormat(StrEnum):
 
 @exits_cleanly
 def compare_command(
-    a: Annotated[str, typer.Argument(help="A built-in controller name, or a .py submission file.")],
-    b: Annotated[str, typer.Argument(help="The other one.")],
+    a: Annotated[
+        str, typer.Argument(metavar="A", help="A built-in controller name, or a .py submission file.")
+    ],
+    b: Annotated[str, typer.Argument(metavar="B", help="The other one.")],
     benchmark: BenchmarkOption = DEFAULT,
     fault_class: CellsOptions.fault_class = None,
     sensor: CellsOptions.sensor = None,

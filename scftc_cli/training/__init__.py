@@ -100,7 +100,11 @@ TRAINERS: dict[str, dict[str, str]] = {
         "rma_dob": "scftc_cli.training.rma:train_student",
         "e2e_ppo": "scftc_cli.training.ppo:train_e2e_ppo",
     },
-    "scftc-v2": {},
+    "scftc-v2": {
+        "pid": "scftc_cli.training.tuning:tune_pid",
+        "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
+        "fdir": "scftc_cli.training.v2_fdir:tune_fdir",
+    },
 }
 """Per benchmark version, controller name -> trainer."""
 

@@ -14,6 +14,13 @@ Budgets: ``quick`` (CI smoke test, well under 2 minutes) and ``full`` (the commi
 files; 20 faults x 3 seeds per class, minutes per controller). After the search, the winner is
 scored once on larger train cells for the provenance (``train_settled_rate``: the mean over the
 three classes). Same seed, same result: the episodes are pinned and DE is seeded.
+
+``scftc-v2`` (docs/controllers.md, "scftc-v2 ports"): the same search and objective over the v2
+ports' boxes (``V2_SPECS``), on the pinned train cells of all five actuator classes (and, for
+``pid``, whose integrator is the one part of the battery that acts on a gyro-bias step, the
+``sign+gyro_bias`` sensor cell), 12 faults x 3 seeds per cell: 180 episodes, as v1's tuning set.
+Its params files live in ``params/v2/``; the provenance score is the mean over the tuned cells on
+50 x 10 episodes each, and every v2 train cell (actuator and sensor) is scored for the record.
 """
 
 from __future__ import annotations
@@ -34,20 +41,24 @@ from scftc_cli.baselines.icl import NAME as ICL
 from scftc_cli.baselines.icl import ICLAdaptive, ICLParams
 from scftc_cli.baselines.nussbaum import NAME as NUSSBAUM
 from scftc_cli.baselines.nussbaum import Nussbaum, NussbaumParams
-from scftc_cli.baselines.params import save_params
+from scftc_cli.baselines.params import save_params, v2_params_path
 from scftc_cli.baselines.pid import NAME as PID_NAME
 from scftc_cli.baselines.pid import PID, PIDParams
 from scftc_cli.baselines.plan import NAME as PLAN
 from scftc_cli.baselines.plan import PlanParams, RLSPlan
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
+from scftc_cli.baselines.v2 import nussbaum as v2_nussbaum
+from scftc_cli.baselines.v2 import pid as v2_pid
 from scftc_cli.protocol import Controller
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.testbed import testbed
 from scftc_cli.sim.v1 import TESTBED
 from scftc_cli.sim.v1.faults import RigidEpisodes
-from scftc_cli.spec import V1
+from scftc_cli.spec import SPECS as BENCHMARKS
+from scftc_cli.spec import V1, V2
 from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
 
 TUNE_SPLIT = "train"
@@ -84,6 +95,7 @@ class TuneSpec:
     factory: Callable[[Any], Controller]
     space: tuple[Dim, ...]
     classes: tuple[str, ...] = TUNE_CLASSES  # the train cells flown by the objective
+    benchmark: str = V1.version  # the version whose train split it is tuned on
 
     def params(self, x: np.ndarray) -> Any:
         """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
@@ -112,6 +124,13 @@ BUDGETS: dict[str, TuneBudget] = {
     "quick": TuneBudget(n_faults=3, n_seeds=2, popsize=2, maxiter=2, final_faults=5, final_seeds=2),
     "full": TuneBudget(n_faults=20, n_seeds=3, popsize=10, maxiter=40, final_faults=50, final_seeds=10),
 }
+
+V2_BUDGETS: dict[str, TuneBudget] = {
+    "quick": TuneBudget(n_faults=2, n_seeds=1, popsize=2, maxiter=2, final_faults=2, final_seeds=2),
+    "full": TuneBudget(n_faults=12, n_seeds=3, popsize=10, maxiter=40, final_faults=50, final_seeds=10),
+}
+"""``scftc-v2``: 180 tuning episodes for the five actuator classes (v1 flies 180 over three), the
+same differential-evolution effort as v1."""
 
 SPECS: dict[str, TuneSpec] = {
     PID_NAME: TuneSpec(
@@ -203,25 +222,76 @@ SPECS: dict[str, TuneSpec] = {
 }
 
 
-def tuning_episodes(n_faults: int, n_seeds: int, classes: tuple[str, ...] = TUNE_CLASSES) -> Episodes:
-    """The pinned train-split episodes the tuner flies (first faults and seeds of each cell)."""
-    return RigidEpisodes.concat([TESTBED.draw(TUNE_SPLIT, c, None, n_faults, n_seeds) for c in classes])
+V2_CLASSES: tuple[str, ...] = tuple(V2.fault_classes)
+
+V2_SPECS: dict[str, TuneSpec] = {
+    v2_pid.NAME: TuneSpec(
+        v2_pid.NAME,
+        v2_pid.PIDParams,
+        v2_pid.PID,
+        SPECS[PID_NAME].space,
+        benchmark=V2.version,
+        classes=(*V2_CLASSES, "sign+gyro_bias"),  # the integrator removes a gyro-bias step's offset
+    ),
+    v2_nussbaum.NAME: TuneSpec(
+        v2_nussbaum.NAME,
+        v2_nussbaum.NussbaumParams,
+        v2_nussbaum.Nussbaum,
+        (*SPECS[NUSSBAUM].space, Dim("k_null", 0.0, 0.3)),
+        benchmark=V2.version,
+        classes=V2_CLASSES,
+    ),
+}
+"""The ``scftc-v2`` ports tuned here (``baselines/v2/``): v1's boxes, and for ``nussbaum`` the gain
+of its null-space term (the fourth wheel's freedom, which v1 does not have)."""
+
+TUNE_SPECS: dict[str, dict[str, TuneSpec]] = {V1.version: SPECS, V2.version: V2_SPECS}
+BUDGETS_BY_BENCHMARK: dict[str, dict[str, TuneBudget]] = {V1.version: BUDGETS, V2.version: V2_BUDGETS}
+
+
+def tune_spec(controller: str, benchmark: str = V1.version) -> TuneSpec:
+    """The tuning spec of ``controller`` on ``benchmark``."""
+    return TUNE_SPECS[benchmark][controller]
+
+
+def _cell(label: str) -> tuple[str, str | None]:
+    """``"sign+gyro_bias"`` -> ``("sign", "gyro_bias")``; ``"gain"`` -> ``("gain", None)``."""
+    fault_class, _, sensor = label.partition("+")
+    return fault_class, sensor or None
+
+
+def tuning_episodes(
+    n_faults: int, n_seeds: int, classes: tuple[str, ...] = TUNE_CLASSES, benchmark: str = V1.version
+) -> Episodes:
+    """The pinned train-split episodes the tuner flies (first faults and seeds of each cell; a
+    ``class+sensor`` label names a sensor cell)."""
+    if benchmark == V1.version:
+        return RigidEpisodes.concat([TESTBED.draw(TUNE_SPLIT, c, None, n_faults, n_seeds) for c in classes])
+    bed = testbed(benchmark)
+    parts = [bed.draw(TUNE_SPLIT, *_cell(c), n_faults, n_seeds) for c in classes]
+    return type(parts[0]).concat(parts)
 
 
 def objective(controller: Controller, episodes: Episodes) -> tuple[float, float]:
     """``(loss, settled_rate)``: ``loss = -settled_rate + tie`` (see the module docstring)."""
+    gates = BENCHMARKS[episodes.benchmark].gates
     result = rollout(controller, episodes)
-    settled = gate_outcomes(result, V1.gates)["settled"]
+    settled = gate_outcomes(result, gates)["settled"]
     n = settled.size
-    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / V1.gates.settled_deg), -4, 4)
+    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / gates.settled_deg), -4, 4)
     tie = 0.5 / n * float(np.mean(depth + 4.0) / 8.0)
     rate = float(settled.mean())
     return -rate + tie, rate
 
 
 def train_scores(spec: TuneSpec, params: Any, n_faults: int, n_seeds: int) -> dict[str, float]:
-    """Settled rate of ``params`` on each train class (incl. ``loss``, for the record)."""
-    return train_settled_rates(lambda: spec.factory(params), V1.fault_classes, n_faults, n_seeds)
+    """Settled rate of ``params`` on each train class (incl. ``loss``, for the record; on
+    ``scftc-v2`` also every sensor cell)."""
+    bench = BENCHMARKS[spec.benchmark]
+    cells = tuple(bench.fault_classes)
+    if spec.benchmark != V1.version:
+        cells += tuple(f"{bench.sensor_base_class}+{s}" for s in bench.sensor_faults)
+    return train_settled_rates(lambda: spec.factory(params), cells, n_faults, n_seeds, spec=bench)
 
 
 @dataclass(frozen=True)
@@ -232,10 +302,11 @@ class Objective:
     controller: str
     n_faults: int
     n_seeds: int
+    benchmark: str = V1.version
 
     def __call__(self, x: np.ndarray) -> float:
-        spec = SPECS[self.controller]
-        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes)
+        spec = tune_spec(self.controller, self.benchmark)
+        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes, spec.benchmark)
         return objective(spec.factory(spec.params(x)), episodes)[0]
 
 
@@ -246,9 +317,9 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     parallel; that needs scipy's deferred update (``updating="deferred"``), so the result equals the
     serial run with the deferred update, not the immediate one the committed parameters used.
     """
-    budget = BUDGETS[request.budget]
+    budget = BUDGETS_BY_BENCHMARK[spec.benchmark][request.budget]
     started = time.perf_counter()
-    episodes = tuning_episodes(budget.n_faults, budget.n_seeds, spec.classes)
+    episodes = tuning_episodes(budget.n_faults, budget.n_seeds, spec.classes, spec.benchmark)
     dims = len(spec.space)
     expected = (budget.maxiter + 1) * budget.popsize * dims
     calls = {"n": 0, "best": -np.inf}
@@ -281,7 +352,9 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
             "callback": on_generation,
         }
     result = differential_evolution(
-        loss if request.runner is None else Objective(spec.controller, budget.n_faults, budget.n_seeds),
+        loss
+        if request.runner is None
+        else Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark),
         bounds=[d.bounds() for d in spec.space],
         seed=request.seed,
         popsize=budget.popsize,
@@ -310,7 +383,11 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
         train_rate,
         notes,
     )
-    path = save_params(spec.controller, dataclasses.asdict(best), provenance, request.out)
+    out = request.out
+    if spec.benchmark != V1.version:
+        provenance = provenance.model_copy(update={"benchmark_version": spec.benchmark})
+        out = out or v2_params_path(spec.controller)
+    path = save_params(spec.controller, dataclasses.asdict(best), provenance, out)
     request.on_progress(1.0, "done")
     return TrainReport(
         controller=spec.controller,
@@ -321,23 +398,23 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
 
 
 def tune_pid(request: TrainRequest) -> TrainReport:
-    return tune(SPECS[PID_NAME], request)
+    return tune(tune_spec(PID_NAME, request.benchmark), request)
 
 
 def tune_classical_adaptive(request: TrainRequest) -> TrainReport:
-    return tune(SPECS[ADAPTIVE], request)
+    return tune(tune_spec(ADAPTIVE, request.benchmark), request)
 
 
 def tune_icl_adaptive(request: TrainRequest) -> TrainReport:
-    return tune(SPECS[ICL], request)
+    return tune(tune_spec(ICL, request.benchmark), request)
 
 
 def tune_nussbaum(request: TrainRequest) -> TrainReport:
-    return tune(SPECS[NUSSBAUM], request)
+    return tune(tune_spec(NUSSBAUM, request.benchmark), request)
 
 
 def tune_rls_dob(request: TrainRequest) -> TrainReport:
-    return tune(SPECS[RLS], request)
+    return tune(tune_spec(RLS, request.benchmark), request)
 
 
 def tune_rls_plan(request: TrainRequest) -> TrainReport:
