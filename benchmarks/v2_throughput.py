@@ -15,7 +15,7 @@ Measures env-steps/s (episodes x steps / seconds, wall clock) of:
 - the same loop on Basilisk, a small batch flown twice (a short and a longer prefix of the
   episodes), so that building its hubs and one step are timed apart, then scaled up to whole
   400-step episodes of the same batch;
-- the gymnasium vector environment (``scftc/AttitudeFTCWheels-v2``) at 8192 episodes under zero
+- the gymnasium vector environment (``scftc/AttitudeFTC-v2``) at 8192 episodes under zero
   actions: one whole episode of steps, its same-step autoreset (drawing the next 8192 episodes)
   included; and its reset alone.
 

@@ -1,4 +1,4 @@
-"""``scftc/AttitudeFTCWheels-v2``: ``scftc-v2``'s reaction-wheel plant, sensors and fault taxonomy as a
+"""``scftc/AttitudeFTC-v2``: ``scftc-v2``'s reaction-wheel plant, sensors and fault taxonomy as a
 gymnasium environment.
 
 An episode is one ``scftc-v2`` episode (docs/benchmark-v2.md): a fault drawn from the chosen split,
@@ -43,7 +43,7 @@ from scftc_cli.sim.v2 import CONSTANTS, TESTBED
 from scftc_cli.sim.v2.faults import WheelEpisodes, check_cell, sample_episodes_batch
 from scftc_cli.spec import V2
 
-ENV_ID = "scftc/AttitudeFTCWheels-v2"
+ENV_ID = "scftc/AttitudeFTC-v2"
 """Not ``scftc/AttitudeFTC-v2``: gymnasium reads that as a newer version of ``AttitudeFTC-v1`` and
 would tell every v1 user that v1 "is out of date"; scftc-v2 is another track, not a replacement."""
 DEFAULT_CLASSES: tuple[str, ...] = V2.fault_classes

@@ -32,13 +32,29 @@ def test_import_scftc_cli_registers_the_environments(code: str):
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
 
 
+def test_v1_is_not_called_out_of_date_by_the_v2_track():
+    """Gymnasium reads ``-v2`` as v1's successor and prints "out of date" on ``make`` of v1; the
+    tracks are separate, so nothing is printed."""
+    code = (
+        "import scftc_cli, gymnasium as gym; "
+        f"gym.make({ENV_ID!r}); gym.make('scftc/AttitudeFTC-v2'); "
+        f"gym.make_vec({ENV_ID!r}, num_envs=2, vectorization_mode='vector_entry_point')"
+    )
+    done = subprocess.run(
+        [sys.executable, "-W", "default", "-c", code], check=True, timeout=120, capture_output=True, text=True
+    )
+    assert "out of date" not in done.stderr, done.stderr
+
+
 def test_checkers_pass():
     from gymnasium.utils.env_checker import check_env
 
     import scftc_cli  # noqa: F401
+    from scftc_cli.envs import V1_OUT_OF_DATE
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no checker warning either
+        warnings.filterwarnings("ignore", message=V1_OUT_OF_DATE)  # as registration sets it
         check_env(gymnasium.make(ENV_ID).unwrapped)
         check_env(gymnasium.make(ENV_ID, include_prev_action=True).unwrapped)
 
