@@ -93,8 +93,9 @@ def train_command(
         highlight=False,
     )
     if not in_place:
+        version_option = "" if benchmark == DEFAULT_BENCHMARK else f" --benchmark {benchmark}"
         stderr.print(
-            f"evaluate it with `scftc eval --benchmark {benchmark} --controller {controller} "
+            f"evaluate it with `scftc eval{version_option} --controller {controller} "
             f"--params {report.artifact} --split train`",
             highlight=False,
             soft_wrap=True,

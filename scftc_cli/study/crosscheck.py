@@ -63,16 +63,12 @@ GROUPS = (
     Cell("test", "sign", "bias_0.2"),
     Cell("test", "sign", "stuck"),
 )
-# scftc-v2: an adaptive wheel law once one is registered for it, else the teacher (gain known,
-# offsets and friction not: the allocation changes at the onset, the friction fault stays unknown).
-V2_ADAPTIVE_PREFERENCE = (
-    "rls_dob",
-    "classical_adaptive",
-    "icl_adaptive",
-    "nussbaum",
-    "teacher",
-    "bias_oracle",
-)
+# scftc-v2: the teacher (gain known, offsets and friction not: the allocation changes at the onset,
+# the friction fault stays unknown). Not the v2 adaptive laws: their discrete decisions (nussbaum's
+# sign switching, fdir's change tests) turn the backends' 1e-13 one-step difference into different
+# trajectories (measured on the default 20 episodes: 1.7 rad with nussbaum, 2e-3 with fdir), which
+# says nothing about the plants; the one-step difference is reported beside every closed-loop run.
+V2_ADAPTIVE_PREFERENCE = ("teacher", "bias_oracle")
 # Ordered for coverage: a short check (3 episodes) still flies a reversed wheel (which ``pd``
 # drives into the speed limit), a friction fault and a dead wheel; then the other actuator
 # classes, then every sensor fault on top of sign faults.
