@@ -84,6 +84,7 @@ def train(timesteps: int, seed: int, num_envs: int):
     """A PPO policy trained on the train split through ``gymnasium.make_vec``."""
     import gymnasium as gym
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecEnv
 
     import scftc_cli  # noqa: F401  (registers scftc/AttitudeFTC-v1)
@@ -129,6 +130,7 @@ def train(timesteps: int, seed: int, num_envs: int):
             return [False] * num_envs
 
     model = PPO("MlpPolicy", Adapter(), n_steps=256, batch_size=256, seed=seed, verbose=0, device="cpu")
+    model.set_logger(Logger(folder=None, output_formats=[]))  # no log folder left in /tmp
     model.learn(total_timesteps=timesteps)
     return model
 

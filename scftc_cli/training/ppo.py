@@ -190,6 +190,7 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
     try:
         from sb3_contrib import RecurrentPPO
         from stable_baselines3.common.callbacks import BaseCallback
+        from stable_baselines3.common.logger import Logger
         from stable_baselines3.common.vec_env import VecNormalize
     except ImportError as err:  # pragma: no cover - depends on the installed extras
         raise ScftcError("training e2e_ppo needs the `rl` extra: pip install 'scftc[rl]'") from err
@@ -245,6 +246,7 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
                 "log_std_init": budget.log_std_init,
             },
         )
+        model.set_logger(Logger(folder=None, output_formats=[]))  # sb3's default makes a /tmp folder
         model.learn(total_timesteps=budget.total_timesteps, callback=Progress())
         policy = export_policy(model, config)
         net = policy_net(policy, config)

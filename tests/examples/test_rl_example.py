@@ -4,6 +4,7 @@ exported to one submission file with its weights inside, dry-run in the sandbox.
 from __future__ import annotations
 
 import hashlib
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -22,8 +23,12 @@ def test_train_export_and_dry_run(tmp_path: Path):
     out = tmp_path / "tiny_ppo.py"
     command = [sys.executable, str(EXAMPLE), "--timesteps", "2048", "--num-envs", "8", "--name", "tiny_ppo"]
     command += ["--out", str(out), "--dry-run-size", "2", "1"]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TMPDIR": str(scratch)}
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
+    assert not list(scratch.glob("SB3-*"))  # stable-baselines3 leaves no log folder behind
     assert f"wrote {out}" in result.stdout
     assert "public draw:" in result.stdout and "dry run: public draw only" in result.stdout
     sub = load_submission(out)  # one valid file: its sha256 covers the weights inside it
