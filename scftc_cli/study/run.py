@@ -294,7 +294,7 @@ def run_study(
         sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]
         deployed, reason = (
             None,
-            "every controller flies the sensor classes on this version (part of its battery)",
+            "Every controller flies the sensor classes on this version (part of its battery)",
         )
         regimes: dict[str, Regime] = {s: "controllable" for s in spec.sensor_faults}
         rule = REGIME_RULE_REDUNDANT
