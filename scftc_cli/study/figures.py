@@ -465,7 +465,7 @@ def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / f"{stem}.png", out_dir / f"{stem}.svg"]
     fig.draw_without_rendering()  # lays the figure out once; both files share its tight box
-    tight = fig.get_tightbbox(fig.canvas.get_renderer()).padded(PAD_INCHES)
+    tight = fig.get_tightbbox().padded(PAD_INCHES)
     fig.savefig(paths[0], dpi=DPI, bbox_inches=tight)
     with matplotlib.rc_context(SVG_STYLE):
         fig.savefig(paths[1], dpi=DPI, bbox_inches=tight)
