@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 import yaml
@@ -139,18 +137,6 @@ def test_observer_cancels_a_constant_bias_despite_a_wrong_gain(factor: float) ->
     expected = episodes.fault.beta * factor
     assert np.allclose(controller.beta_hat, expected, atol=1e-3 * np.abs(expected).max())
     assert np.median(result.final_error_deg) < 0.2
-
-
-def test_check_env_passes() -> None:
-    gymnasium = pytest.importorskip("gymnasium")
-    from gymnasium.utils.env_checker import check_env
-
-    import scftc_cli.envs  # noqa: F401  (registers scftc/AttitudeFTC-v1)
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # no checker warning either
-        check_env(gymnasium.make("scftc/AttitudeFTC-v1").unwrapped)
-        check_env(gymnasium.make("scftc/AttitudeFTC-v1", include_prev_action=True).unwrapped)
 
 
 def test_vector_env_matches_the_benchmark_horizon_and_is_seeded() -> None:

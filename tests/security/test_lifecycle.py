@@ -66,11 +66,14 @@ def test_an_exception_through_the_context_manager_ends_the_sandbox(tmp_path: Pat
 
 
 PARENT = """
-import sys, time
+import signal, sys, time
 import numpy as np
 from scftc_cli.sim.v1 import public_context
 from scftc_cli.submission.sandbox import Sandbox
 
+# As an interactive user's Ctrl-C finds it, even when the test run itself was started in the
+# background (a non-interactive shell starts background jobs with SIGINT ignored).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 source = open(sys.argv[1], "rb").read()
 with Sandbox(source, sys.argv[1].rsplit("/", 1)[-1], "Ctl", ("numpy",)) as box:
     box.reset(public_context(1), "test")
