@@ -1,7 +1,9 @@
 """Serial vs a local Dask cluster (``--workers``), in one run: ``leaderboard verify`` of the
 committed board and one 50 000-episode cell.
 
-Run: ``python benchmarks/dask.py [--workers 2] [--out benchmarks/results/dask.json]``
+Run: ``python benchmarks/cluster.py [--workers 2] [--out benchmarks/results/cluster.json]``
+
+(Not ``dask.py``: run as a script, a file of that name beside it would shadow the ``dask`` package.)
 
 Wall times include the cluster's start-up (what a user pays for ``--workers``); the peak resident
 memory of each worker process is read on the workers after the runs. The cell results are
@@ -37,7 +39,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/dask.json"))
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/cluster.json"))
     args = parser.parse_args()
     board = default_board_path(V1.version)
     cell = [Cell("test", "gain_bias")]
