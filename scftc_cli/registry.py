@@ -164,6 +164,13 @@ BUILTINS: tuple[ControllerSpec, ...] = (
         artifacts=("params/v2/nussbaum.yaml",),
     ),
     ControllerSpec(
+        "rls_dob",
+        "scftc_cli.baselines.v2.rls:RLSDob",
+        "per-wheel RLS on the tachometer torque + disturbance observer, latched, re-opened on a change",
+        benchmarks=V2,
+        artifacts=("params/v2/rls_dob.yaml",),
+    ),
+    ControllerSpec(
         "fdir",
         "scftc_cli.baselines.v2.fdir:FDIR",
         "flight-style FDIR: MEKF with gyro-bias and head tests + per-wheel CUSUM and re-identification",

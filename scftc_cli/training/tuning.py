@@ -50,6 +50,7 @@ from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
 from scftc_cli.baselines.v2 import nussbaum as v2_nussbaum
 from scftc_cli.baselines.v2 import pid as v2_pid
+from scftc_cli.baselines.v2 import rls as v2_rls
 from scftc_cli.protocol import Controller
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.episodes import Episodes
@@ -224,6 +225,8 @@ SPECS: dict[str, TuneSpec] = {
 
 V2_CLASSES: tuple[str, ...] = tuple(V2.fault_classes)
 
+_DITHER = (Dim("dither_amp", 0.0, 0.5), Dim("dither_steps", 0, 400, integer=True))  # 400: the whole episode
+
 V2_SPECS: dict[str, TuneSpec] = {
     v2_pid.NAME: TuneSpec(
         v2_pid.NAME,
@@ -241,9 +244,32 @@ V2_SPECS: dict[str, TuneSpec] = {
         benchmark=V2.version,
         classes=V2_CLASSES,
     ),
+    v2_rls.NAME: TuneSpec(
+        v2_rls.NAME,
+        v2_rls.RLSParams,
+        v2_rls.RLSDob,
+        (
+            Dim("forgetting", 0.9, 1.0),
+            Dim("p0_g", 1.0, 1e4, log=True),
+            Dim("p0_b", 0.1, 1e3, log=True),
+            Dim("p0_kappa", 1e-4, 10.0, log=True),
+            Dim("p_max", 10.0, 1e5, log=True),
+            *_DITHER,
+            Dim("latch_min_steps", 2, 30, integer=True),
+            Dim("latch_tol", 1e-4, 0.1, log=True),
+            Dim("latch_prior_ratio", 1e-4, 0.1, log=True),
+            Dim("observer_gain", 0.01, 0.5, log=True),
+            Dim("detect_threshold", 0.005, 0.2, log=True),
+            Dim("detect_steps", 1, 6, integer=True),
+        ),
+        benchmark=V2.version,
+        classes=V2_CLASSES,
+    ),
 }
-"""The ``scftc-v2`` ports tuned here (``baselines/v2/``): v1's boxes, and for ``nussbaum`` the gain
-of its null-space term (the fourth wheel's freedom, which v1 does not have)."""
+"""The ``scftc-v2`` ports tuned here (``baselines/v2/``): v1's boxes where a parameter carries over,
+for ``nussbaum`` the gain of its null-space term (the fourth wheel's freedom, which v1 does not
+have), for ``rls_dob`` a dither allowed to last the whole episode (in the null space of the wheel
+array it costs the hub nothing once the estimates are right) and the change test's parameters."""
 
 TUNE_SPECS: dict[str, dict[str, TuneSpec]] = {V1.version: SPECS, V2.version: V2_SPECS}
 BUDGETS_BY_BENCHMARK: dict[str, dict[str, TuneBudget]] = {V1.version: BUDGETS, V2.version: V2_BUDGETS}

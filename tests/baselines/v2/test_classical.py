@@ -1,4 +1,4 @@
-"""The ``scftc-v2`` classical ports that are tuned and registered: ``pid`` and ``nussbaum``
+"""The ``scftc-v2`` classical ports that are tuned and registered: ``pid``, ``nussbaum``, ``rls_dob``
 (``fdir`` has its own tests)."""
 
 from __future__ import annotations
@@ -12,21 +12,32 @@ import yaml
 
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.baselines.params import v2_params_path
+from scftc_cli.baselines.v2 import estimators
+from scftc_cli.baselines.v2.estimators import (
+    ChangeDetector,
+    WheelSample,
+    informative,
+    mean_coulomb_shape,
+    null_direction,
+)
 from scftc_cli.baselines.v2.nussbaum import Nussbaum, NussbaumParams
 from scftc_cli.baselines.v2.pid import PID, PIDParams
+from scftc_cli.baselines.v2.rls import RLSDob, RLSParams
+from scftc_cli.protocol import Progress
 from scftc_cli.registry import controller_spec
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.testbed import testbed as bed_for
-from scftc_cli.sim.v2 import TESTBED
+from scftc_cli.sim.v2 import TESTBED, public_context
 from scftc_cli.sim.v2.faults import WheelEpisodes, WheelFault
 from scftc_cli.spec import V2
 from scftc_cli.training import TrainRequest, get_trainer, tuning
 
 BED = bed_for("scftc-v2")
-NAMES = ("pid", "nussbaum")
+NAMES = ("pid", "nussbaum", "rls_dob")
 DEFAULTS = {
     "pid": lambda: PID(PIDParams()),
     "nussbaum": lambda: Nussbaum(NussbaumParams()),
+    "rls_dob": lambda: RLSDob(RLSParams()),
 }
 
 
@@ -39,6 +50,21 @@ def with_fault(episodes: WheelEpisodes, **changes: np.ndarray) -> WheelEpisodes:
     if "onset_step" in rows:
         rows["onset_step"] = rows["onset_step"].astype(np.int64)
     return dataclasses.replace(episodes, fault=dataclasses.replace(fault, **rows))
+
+
+class _Trace(Progress):
+    def __init__(self, controller, attribute) -> None:
+        self.controller, self.attribute, self.history = controller, attribute, []
+
+    def advance(self, amount: float = 1.0) -> None:
+        self.history.append(np.copy(self.attribute(self.controller)))
+
+
+def trace(controller, episodes, attribute):
+    """Fly ``episodes``; ``attribute(controller)`` after every step, ``(steps, ...)``."""
+    recorder = _Trace(controller, attribute)
+    result = rollout(controller, episodes, progress=recorder)
+    return result, np.stack(recorder.history)
 
 
 # --- protocol and registration ----------------------------------------------------------------------
@@ -76,6 +102,153 @@ def test_a_v2_port_refuses_v1():
     episodes = bed_for("scftc-v1").draw("train", "sign", n_faults=1, n_seeds=1)
     with pytest.raises(Exception, match="scftc-v2"):
         rollout(PID(PIDParams()), episodes, steps=2)
+
+
+# --- the wheel-torque measurement ------------------------------------------------------------------
+
+
+def test_mean_coulomb_shape_is_the_exact_mean_over_a_ramp():
+    wlc = 3.0
+    start = np.array([[10.0, -10.0, 1.0, -2.0, 5.0]])
+    end = np.array([[20.0, -4.0, 2.0, 2.0, 5.0]])
+    got = mean_coulomb_shape(start, end, wlc)[0]
+    assert got[0] == -1.0 and got[1] == 1.0  # outside the zone: -sign
+    assert got[2] == pytest.approx(-1.5 / wlc)  # inside: -mean(Omega) / wLC
+    assert got[3] == pytest.approx(0.0)  # symmetric through zero
+    assert got[4] == -1.0  # no change: the shape at the start
+    ramp = np.linspace(-1.0, 7.0, 200_001)
+    exact = np.mean(np.where(np.abs(ramp) < wlc, -ramp / wlc, -np.sign(ramp)))
+    got = mean_coulomb_shape(np.array([[-1.0]]), np.array([[7.0]]), wlc)[0, 0]
+    assert got == pytest.approx(exact, abs=1e-4)
+
+
+def test_the_tachometer_torque_matches_the_true_fault_to_its_noise():
+    """Over a whole rollout, every linear sample equals ``clip(g a + b) + kappa s`` of the true
+    fault in force during its step, to the tachometers' noise (about 9e-4 of ``u_max``)."""
+    episodes = BED.draw("train", "gain_bias", n_faults=3, n_seeds=2)
+    episodes = with_fault(episodes, friction_multiplier=[15.0, 1.0, 1.0, 1.0])
+    controller = RLSDob(RLSParams())
+    samples = []
+    original = controller._adapt
+
+    def keep(sample):
+        samples.append(sample)
+        original(sample)
+
+    controller._adapt = keep  # type: ignore[method-assign]
+    rollout(controller, episodes)
+    wheels = controller.wheels
+    residuals = []
+    for k, sample in enumerate(samples):
+        g, b, multiplier = episodes.fault.at(k)
+        kappa = multiplier * wheels.coulomb_nm / wheels.u_max_nm
+        _, linear, _ = informative(sample, g, b, kappa, wheels)
+        truth = np.clip(g * sample.a + b, -1.0, 1.0) + kappa * sample.s
+        residuals.append(np.where(linear, sample.z - truth, np.nan))
+    residuals = np.array(residuals)
+    assert np.isfinite(residuals).mean() > 0.9
+    assert np.nanstd(residuals) < 1.5e-3
+    assert np.nanpercentile(np.abs(residuals), 99.9) < 0.01
+
+
+def test_a_clipped_sample_bounds_the_estimate_only_where_it_falls_short():
+    wheels = public_context(1).wheels
+    ones = np.ones((1, 4))
+    sample = WheelSample(z=np.array([[1.0, 1.0, -0.3, 1.0]]), a=ones, s=-ones, speed_rad_s=100.0 * ones)
+    g = np.array([[-1.0, 2.0, 1.0, 0.8]])
+    target, linear, censored = informative(sample, g, 0.0 * ones, 0.0 * ones, wheels)
+    assert linear.tolist() == [[False, False, True, False]]
+    assert censored.tolist() == [[True, False, False, True]]  # wheel 1's estimate already reaches the clip
+    assert target[0, 0] == 1.0 and target[0, 3] == 1.0 and target[0, 2] == -0.3
+    at_limit = WheelSample(z=sample.z, a=ones, s=-ones, speed_rad_s=np.full((1, 4), wheels.omega_max_rad_s))
+    _, linear, censored = informative(at_limit, g, 0.0 * ones, 0.0 * ones, wheels)
+    assert not linear.any() and not censored.any()
+
+
+def test_the_dither_direction_puts_no_torque_on_the_hub():
+    wheels = public_context(1).wheels
+    rng = np.random.default_rng(0)
+    g = rng.uniform(0.3, 2.0, (50, 4)) * np.where(rng.random((50, 4)) < 0.5, -1.0, 1.0)
+    v = null_direction(g)
+    torque = np.einsum("ij,nj->ni", wheels.spin_axes.T, g * v)
+    assert np.abs(torque).max() < 1e-12 and np.allclose(np.abs(v).max(axis=1), 1.0)
+    g[:, 2] = 0.0  # a wheel estimated dead: only it is probed
+    v = null_direction(g)
+    assert np.all(v[:, 2] == 1.0) and np.all(v[:, [0, 1, 3]] == 0.0)
+
+
+def test_the_change_detector_ignores_a_spike_and_catches_a_step():
+    detector = ChangeDetector(2, 4, threshold=0.02, steps=2)
+    ok, armed = np.ones((2, 4), bool), np.ones((2, 4), bool)
+    quiet = np.zeros((2, 4))
+    spike = quiet.copy()
+    spike[0, 1] = 0.5
+    assert not detector.update(spike, ok, armed).any()
+    assert not detector.update(quiet, ok, armed).any()
+    assert not detector.update(spike, ok, armed).any()
+    assert detector.update(spike, ok, armed).tolist() == [True, False]
+    assert not detector.update(spike, ok, ~armed).any()  # disarmed: never
+
+
+# --- the estimators on known faults ------------------------------------------------------------------
+
+
+def test_rls_identifies_every_wheel_and_reopens_after_a_late_fault():
+    """A gain-and-offset fault with one reversed wheel starting at step 150, long after the latch
+    closed on the healthy plant: the residual test re-opens it, the estimates match the fault and
+    the episodes settle."""
+    episodes = BED.draw("train", "gain_bias", n_faults=2, n_seeds=3)
+    gain = np.array([-0.8, 1.3, 0.6, 1.1])
+    bias = np.array([0.1, -0.15, 0.05, 0.0])
+    episodes = with_fault(episodes, gain=gain, bias=bias, onset_step=150, inertia_scale=1.2)
+    controller = RLSDob(RLSParams(dither_steps=20, p0_g=1e3, p0_b=1e2, p_max=1e4, latch_prior_ratio=0.005))
+    result, latched = trace(controller, episodes, lambda c: c.latched.copy())
+    assert latched[140].all()  # every wheel latched on the healthy plant before the onset
+    assert np.all(controller.reopened >= 1)
+    g_hat, b_hat, _ = controller.estimates
+    assert np.abs(g_hat - gain).max() < 0.05 and np.abs(b_hat - bias).max() < 0.02
+    assert np.all(result.dwell_max_error_deg <= V2.gates.settled_deg)
+
+
+def test_rls_finds_a_dead_wheel_and_cancels_extra_friction():
+    """Offset and friction are told apart only by a speed reversal; what the law needs, their sum
+    at the wheel's present speed, is identified either way."""
+    episodes = BED.draw("train", "loss", n_faults=2, n_seeds=2)
+    gain = np.array([1.0, 0.0, 0.9, 1.2])
+    multiplier = np.array([1.0, 1.0, 18.0, 1.0])
+    episodes = with_fault(episodes, gain=gain, friction_multiplier=multiplier, onset_step=10)
+    controller = RLSDob(RLSParams())
+    result = rollout(controller, episodes)
+    g_hat, b_hat, kappa_hat = controller.estimates
+    assert np.abs(g_hat - gain).max() < 0.05
+    wheels = controller.wheels
+    assert controller.meter.tach is not None
+    shape = estimators.coulomb_shape(controller.meter.tach, wheels.omega_linear_rad_s)
+    kappa = multiplier * wheels.coulomb_nm / wheels.u_max_nm
+    working = gain != 0.0
+    assert np.abs((b_hat + kappa_hat * shape - kappa * shape)[:, working]).max() < 0.01
+    assert np.all(result.dwell_max_error_deg <= V2.gates.settled_deg)
+
+
+def test_the_fused_law_command_is_its_numpy_definition():
+    """``law_command`` (numba) equals ``null_dither(estimated_command(...))`` (numpy), saturation,
+    the dither and one dead-estimated wheel included. With two or more wheels estimated dead the
+    regularized allocation is rank-deficient and the two forms part (measured: 1e-4 with two, 1.1
+    with three): there the numba kernel, which is what flies, is the definition."""
+    wheels = public_context(1).wheels
+    rng = np.random.default_rng(7)
+    n = 400
+    g_hat = rng.uniform(0.3, 2.0, (n, 4)) * np.where(rng.random((n, 4)) < 0.3, -1.0, 1.0)
+    g_hat[np.arange(n) % 3 == 0, rng.integers(0, 4, n)[np.arange(n) % 3 == 0]] = 0.02  # one estimated dead
+    b_hat = rng.uniform(-0.3, 0.3, (n, 4))
+    kappa_hat = rng.uniform(0.0, 0.1, (n, 4))
+    tach = rng.uniform(-700.0, 700.0, (n, 4))
+    demand = rng.normal(0.0, 0.3, (n, 3))
+    since = rng.integers(0, 40, n)
+    fused = estimators.law_command(demand, g_hat, b_hat, kappa_hat, tach, wheels, since, 0.2, 20, 2)
+    command = estimators.estimated_command(demand, g_hat, b_hat, kappa_hat, tach, wheels)
+    reference = estimators.null_dither(command, since, 0.2, 20, g_hat, 2)
+    np.testing.assert_allclose(fused, reference, rtol=0, atol=1e-12)
 
 
 def test_pid_integrator_removes_a_gyro_bias_offset():
@@ -138,7 +311,7 @@ def test_v2_tuning_samples_train_episodes_only_and_is_deterministic(tmp_path, mo
 def test_v1_tuning_is_untouched_by_the_v2_table():
     for name, spec in tuning.SPECS.items():
         assert spec.benchmark == "scftc-v1" and tuning.tune_spec(name) is spec
-    assert tuning.tune_spec("nussbaum", "scftc-v2") is tuning.V2_SPECS["nussbaum"]
+    assert tuning.tune_spec("rls_dob", "scftc-v2") is tuning.V2_SPECS["rls_dob"]
     assert tuning.Objective("nussbaum", 1, 1).benchmark == "scftc-v1"
     v1 = tuning.tuning_episodes(2, 1)
     assert v1.benchmark == "scftc-v1" and v1.fault_class == "sign+gain+gain_bias"
