@@ -157,6 +157,13 @@ BUILTINS: tuple[ControllerSpec, ...] = (
         family="reference",
     ),
     ControllerSpec(
+        "classical_adaptive",
+        "scftc_cli.baselines.v2.adaptive:ClassicalAdaptive",
+        "per-wheel sign vote + gradient law for gain, offset and friction on the tachometer torque",
+        benchmarks=V2,
+        artifacts=("params/v2/classical_adaptive.yaml",),
+    ),
+    ControllerSpec(
         "nussbaum",
         "scftc_cli.baselines.v2.nussbaum:Nussbaum",
         "per-wheel Nussbaum gain on the wheel-space error + adaptive offset term (no identification)",

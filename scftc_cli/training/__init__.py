@@ -102,6 +102,7 @@ TRAINERS: dict[str, dict[str, str]] = {
     },
     "scftc-v2": {
         "pid": "scftc_cli.training.tuning:tune_pid",
+        "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
         "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
         "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
         "fdir": "scftc_cli.training.v2_fdir:tune_fdir",

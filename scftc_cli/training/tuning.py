@@ -48,6 +48,7 @@ from scftc_cli.baselines.plan import NAME as PLAN
 from scftc_cli.baselines.plan import PlanParams, RLSPlan
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
+from scftc_cli.baselines.v2 import adaptive as v2_adaptive
 from scftc_cli.baselines.v2 import nussbaum as v2_nussbaum
 from scftc_cli.baselines.v2 import pid as v2_pid
 from scftc_cli.baselines.v2 import rls as v2_rls
@@ -241,6 +242,25 @@ V2_SPECS: dict[str, TuneSpec] = {
         v2_nussbaum.NussbaumParams,
         v2_nussbaum.Nussbaum,
         (*SPECS[NUSSBAUM].space, Dim("k_null", 0.0, 0.3)),
+        benchmark=V2.version,
+        classes=V2_CLASSES,
+    ),
+    v2_adaptive.NAME: TuneSpec(
+        v2_adaptive.NAME,
+        v2_adaptive.AdaptiveParams,
+        v2_adaptive.ClassicalAdaptive,
+        (
+            Dim("vote_min_da", 0.01, 0.3, log=True),
+            Dim("vote_threshold", 1.0, 8.0),
+            Dim("gamma_m", 0.05, 1.9, log=True),
+            Dim("gamma_b", 0.0, 1.5),
+            Dim("gamma_kappa", 0.0, 1.5),
+            Dim("sigma_mod", 0.0, 0.1),
+            Dim("dead_zone", 0.0, 0.02),
+            *_DITHER,
+            Dim("detect_threshold", 0.005, 0.2, log=True),
+            Dim("detect_steps", 1, 6, integer=True),
+        ),
         benchmark=V2.version,
         classes=V2_CLASSES,
     ),

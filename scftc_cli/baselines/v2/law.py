@@ -212,9 +212,11 @@ def friction_nm(
 def pseudo_inverse(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
     """``M' (M M' + eps I)^-1`` ``(n, m, 3)`` of ``(n, 3, m)`` matrices of full row rank: their
     pseudo-inverse, in closed form (a 3x3 inverse per row, vectorized over the batch); ``eps``
-    (relative to the trace) keeps it finite when a row loses rank."""
+    (relative to the trace, floored for an all-zero matrix, whose pseudo-inverse is zero) keeps it
+    finite when a row loses rank."""
     mmt = matrix @ np.swapaxes(matrix, 1, 2)
-    eps = damping * np.trace(mmt, axis1=1, axis2=2)[:, None, None]
+    trace = np.trace(mmt, axis1=1, axis2=2)
+    eps = damping * np.where(trace > 0.0, trace, 1.0)[:, None, None]
     return np.swapaxes(matrix, 1, 2) @ np.linalg.inv(mmt + eps * np.eye(3))
 
 

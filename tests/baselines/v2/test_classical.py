@@ -1,4 +1,5 @@
-"""The ``scftc-v2`` classical ports that are tuned and registered: ``pid``, ``nussbaum``, ``rls_dob``
+"""The ``scftc-v2`` classical ports that are tuned and registered: ``pid``, ``classical_adaptive``,
+``nussbaum``, ``rls_dob``
 (``fdir`` has its own tests)."""
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ import yaml
 
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.baselines.params import v2_params_path
-from scftc_cli.baselines.v2 import estimators
+from scftc_cli.baselines.v2 import estimators, law
+from scftc_cli.baselines.v2.adaptive import AdaptiveParams, ClassicalAdaptive
 from scftc_cli.baselines.v2.estimators import (
     ChangeDetector,
     WheelSample,
@@ -33,9 +35,10 @@ from scftc_cli.spec import V2
 from scftc_cli.training import TrainRequest, get_trainer, tuning
 
 BED = bed_for("scftc-v2")
-NAMES = ("pid", "nussbaum", "rls_dob")
+NAMES = ("pid", "classical_adaptive", "nussbaum", "rls_dob")
 DEFAULTS = {
     "pid": lambda: PID(PIDParams()),
+    "classical_adaptive": lambda: ClassicalAdaptive(AdaptiveParams()),
     "nussbaum": lambda: Nussbaum(NussbaumParams()),
     "rls_dob": lambda: RLSDob(RLSParams()),
 }
@@ -249,6 +252,26 @@ def test_the_fused_law_command_is_its_numpy_definition():
     command = estimators.estimated_command(demand, g_hat, b_hat, kappa_hat, tach, wheels)
     reference = estimators.null_dither(command, since, 0.2, 20, g_hat, 2)
     np.testing.assert_allclose(fused, reference, rtol=0, atol=1e-12)
+
+
+def test_the_sign_vote_flips_a_reversed_wheel_and_no_dead_one():
+    episodes = BED.draw("train", "loss", n_faults=2, n_seeds=2)
+    gain = np.array([-1.0, 0.0, 1.0, 1.0])
+    episodes = with_fault(episodes, gain=gain, onset_step=5)
+    controller = ClassicalAdaptive(AdaptiveParams(dither_steps=400, dither_amp=0.2, gamma_m=1.5))
+    _, signs = trace(controller, episodes, lambda c: c.sign.copy())
+    assert np.all(signs[-1][:, 0] == -1.0) and np.all(signs[-1][:, [2, 3]] == 1.0)
+    flips = np.abs(np.diff(signs[:, :, 1], axis=0)).sum(axis=0) / 2
+    assert np.all(flips <= 1)  # the dead wheel casts no votes: at most the one it started with
+    g_hat, _, _ = controller.estimates
+    assert np.all(np.abs(g_hat[:, 1]) < estimators.DEAD_BELOW)
+
+
+def test_the_allocation_of_all_wheels_estimated_dead_is_zero_not_an_error():
+    wheels = public_context(1).wheels
+    gains = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.0, -0.5, 0.8, 1.2]])
+    allocation = law.allocation(gains, wheels)
+    assert np.all(np.isfinite(allocation)) and np.all(allocation[0] == 0.0)
 
 
 def test_pid_integrator_removes_a_gyro_bias_offset():
