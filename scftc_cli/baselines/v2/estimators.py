@@ -285,14 +285,16 @@ def _law_command(  # pragma: no cover - compiled
                 friction[i] = -(np.sign(w) * coulomb + viscous * w)
             for r in range(3):
                 effective[r, i] = axes[i, r] * g[i]
-        # pinv(G diag(g)) = E' (E E' + eps I)^-1, eps = 1e-12 tr(E E') (law.pseudo_inverse)
+        # pinv(G diag(g)) = E' (E E' + eps I)^-1, eps = 1e-12 tr(E E'), or 1e-12 for an all-zero E
+        # (every wheel estimated dead: the allocation is zero), as law.pseudo_inverse
         for r in range(3):
             for c in range(3):
                 acc = 0.0
                 for i in range(m):
                     acc += effective[r, i] * effective[c, i]
                 mmt[r, c] = acc
-        eps = 1e-12 * (mmt[0, 0] + mmt[1, 1] + mmt[2, 2])
+        trace = mmt[0, 0] + mmt[1, 1] + mmt[2, 2]
+        eps = 1e-12 * (trace if trace > 0.0 else 1.0)
         for r in range(3):
             mmt[r, r] += eps
         a00, a01, a02 = mmt[0, 0], mmt[0, 1], mmt[0, 2]

@@ -267,11 +267,17 @@ def test_the_sign_vote_flips_a_reversed_wheel_and_no_dead_one():
     assert np.all(np.abs(g_hat[:, 1]) < estimators.DEAD_BELOW)
 
 
-def test_the_allocation_of_all_wheels_estimated_dead_is_zero_not_an_error():
+def test_the_allocation_of_all_wheels_estimated_dead_is_zero_not_an_error_in_either_form():
     wheels = public_context(1).wheels
     gains = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.0, -0.5, 0.8, 1.2]])
     allocation = law.allocation(gains, wheels)
     assert np.all(np.isfinite(allocation)) and np.all(allocation[0] == 0.0)
+    # the fused law (rls_dob's) and its numpy definition agree there: the wheels' friction
+    # feed-forward and offsets only, no hub demand allocated
+    zeros, demand, since = np.zeros((3, 4)), np.full((3, 3), 0.1), np.zeros(3, np.int64)
+    fused = estimators.law_command(demand, gains, zeros, zeros, zeros + 100.0, wheels, since, 0.0, 0)
+    reference = estimators.estimated_command(demand, gains, zeros, zeros, zeros + 100.0, wheels)
+    assert np.all(np.isfinite(fused)) and np.all(fused[0] == reference[0])
 
 
 def test_pid_integrator_removes_a_gyro_bias_offset():
