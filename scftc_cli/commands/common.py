@@ -8,6 +8,8 @@ spec alone.
 from __future__ import annotations
 
 import functools
+import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from enum import Enum
@@ -26,6 +28,10 @@ if TYPE_CHECKING:
     from scftc_cli.protocol import Progress
 
 stderr = Console(stderr=True)
+LOG_QUIET_S = 10.0
+LOG_EVERY_S = 30.0
+"""Without a terminal, progress is written as a line every ``LOG_EVERY_S`` seconds once a command
+has run ``LOG_QUIET_S`` seconds (``progress_bar``)."""
 
 BenchmarkOption = Annotated[
     str,
@@ -167,7 +173,8 @@ def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
 @contextmanager
 def progress_bar(description: str, total: float | None = None, *, steps: bool = True) -> Iterator[Progress]:
     """A rich progress bar on stderr (transient: it disappears when done); yields the ``Progress``
-    the library reports to. Where stderr is not a terminal (a pipe, a log, CI) nothing is drawn.
+    the library reports to. Where stderr is not a terminal (a pipe, a log, CI) no bar is drawn;
+    work that lasts longer than ten seconds writes a plain line now and then instead.
 
     Args:
         total: units of work (simulated steps unless ``steps`` is false, e.g. a training fraction).
@@ -181,11 +188,38 @@ def progress_bar(description: str, total: float | None = None, *, steps: bool = 
     )
     from rich.progress import Progress as RichProgress
 
-    from scftc_cli.protocol import NO_PROGRESS
     from scftc_cli.protocol import Progress as LibraryProgress
 
+    class LogProgress(LibraryProgress):
+        """Progress as plain, timestamped stderr lines for a log file or CI: silent for the first
+        ``LOG_QUIET_S`` seconds (short commands print nothing), then at most one line every
+        ``LOG_EVERY_S`` seconds, ``HH:MM:SS description: 42%`` (or the units done where the total
+        is unknown)."""
+
+        def __init__(self, description: str, total: float | None) -> None:
+            self.text, self.total, self.done = description, total, 0.0
+            self.next_s = time.monotonic() + LOG_QUIET_S
+
+        def add_total(self, amount: float) -> None:
+            self.total = (self.total or 0.0) + amount
+
+        def advance(self, amount: float = 1.0) -> None:
+            self.done += amount
+            self._maybe_write()
+
+        def describe(self, text: str) -> None:
+            self.text = text
+            self._maybe_write()
+
+        def _maybe_write(self) -> None:
+            if time.monotonic() < self.next_s:
+                return
+            self.next_s = time.monotonic() + LOG_EVERY_S
+            amount = f"{100.0 * self.done / self.total:.0f}%" if self.total else f"{self.done:g}"
+            print(f"{time.strftime('%H:%M:%S')} {self.text}: {amount}", file=sys.stderr, flush=True)
+
     if not stderr.is_terminal:
-        yield NO_PROGRESS
+        yield LogProgress(description, total)
         return
 
     class BarProgress(LibraryProgress):

@@ -93,3 +93,19 @@ def test_oracles_and_pd_reproduce_the_spec_calibration():
     assert oracle["n"] == 500 and 0.90 <= oracle["settled"]["rate"] <= 1.0
     pd = _eval_json("--controller", "pd", "--class", "sign")["cells"][0]
     assert pd["settled"]["rate"] == 0.0
+
+
+def test_without_a_terminal_long_work_logs_plain_progress_lines_and_short_work_none(monkeypatch, capsys):
+    from scftc_cli.commands import common
+
+    with common.progress_bar("short job", 10) as progress:  # pytest's stderr is not a terminal
+        progress.advance(5)
+    assert capsys.readouterr().err == ""
+
+    monkeypatch.setattr(common, "LOG_QUIET_S", 0.0)
+    monkeypatch.setattr(common, "LOG_EVERY_S", 3600.0)
+    with common.progress_bar("long job", 10) as progress:
+        progress.advance(4)
+        progress.advance(1)  # within LOG_EVERY_S of the first line: not written
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].endswith("long job: 40%"), lines
