@@ -6,7 +6,7 @@ privileged oracles are hatched and labelled so they are never read as deployable
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -14,6 +14,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, never a window; must precede pyplot
 
 import matplotlib.pyplot as plt
+import matplotlib.ticker
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
@@ -21,7 +22,7 @@ from matplotlib.patches import Patch
 from scftc_cli.records import EvalResult, GateStat
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.study.run import Study, Trajectory, sensor_bias_deg
+from scftc_cli.study.run import Detection, Study, Trajectory, has_onset, sensor_bias_deg
 
 DPI = 150
 PAD_INCHES = 0.1  # around the tight bounding box, as savefig's default
@@ -399,11 +400,6 @@ def sensor_faults(
     return fig
 
 
-def has_onset(spec: BenchmarkSpec) -> bool:
-    """Whether the version's faults start mid-flight (``scftc-v2``)."""
-    return hasattr(spec.splits["test"], "onset_s")
-
-
 def onset_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """controller -> ``(onset_s (n,), settled (n,) bool)`` over its held-out actuator cells."""
     out = {}
@@ -460,6 +456,111 @@ def settled_vs_onset(
     return fig
 
 
+def _per_1000(alarms: int, steps: int) -> float:
+    """Alarms per 1000 wheel-steps; NaN without exposure (no bar is drawn)."""
+    return 1000 * alarms / steps if steps else float("nan")
+
+
+def fdir_detection(detections: Sequence[Detection], colors: dict[str, tuple] | None = None) -> Figure:
+    """``fdir``'s wheel detector on the held-out actuator classes.
+
+    Left: per class, the empirical CDF of the detection delay over the class's faulted episodes
+    (steps below, seconds above, log scale; the curve tops out at the detected share, and the legend
+    counts the faulted episodes never detected). Curves that coincide are drawn nested, the first
+    class widest. Right: false alarms per class, CUSUM alarms per 1000 wheel-steps up to the onset
+    and on the wheels the fault leaves healthy (the whole episode), each bar annotated with its raw
+    count ``alarms / wheel-steps``; no bar where there is no such wheel-step.
+
+    Args:
+        detections: one ``Detection`` per class (``Study.detection``), each ``(n,)`` per episode.
+        colors: class -> colour; tab10 in the order of ``detections`` by default.
+    """
+    classes = [d.fault_class for d in detections]
+    colors = colors or _colors(classes)
+    dt_s = detections[0].dt_s if detections else 1.0
+    fig, (left, right) = plt.subplots(1, 2, figsize=(15, 6), gridspec_kw={"width_ratios": [1.1, 1]})
+
+    longest = max((int(d.delays[-1]) for d in detections if d.delays.size), default=1)
+    x_max = max(10.0, 2.0 * longest)
+    for i, d in enumerate(detections):
+        n, delays, summary = d.n_faulted, d.delays, d.delay_summary()
+        if n == 0:
+            text = f"{d.fault_class}: no faulted episode"
+        else:
+            text = f"{d.fault_class}: {delays.size}/{n} detected, {d.n_missed} never detected"
+            if summary is not None:
+                text += f" (median {summary[0]}, max {summary[2]} steps)"
+        width = 1.4 + 1.0 * (len(detections) - 1 - i)  # nested: coinciding curves all stay visible
+        if delays.size:
+            # the CDF over the faulted episodes: 0 below the first delay, the detected share at x_max
+            x = np.concatenate([[0.5], delays, [x_max]])
+            y = np.concatenate([[0.0], np.arange(1, delays.size + 1) / n, [delays.size / n]])
+            left.step(x, 100 * y, where="post", color=colors[d.fault_class], linewidth=width, label=text)
+        else:  # nothing to draw; the legend still counts the episodes never detected
+            left.plot([], [], color=colors[d.fault_class], linewidth=width, linestyle=":", label=text)
+    ticks = [t for t in (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000) if t <= x_max]
+    left.set_xscale("log")
+    left.set_xlim(0.8, x_max)
+    left.set_xticks(ticks, [str(t) for t in ticks])
+    left.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    left.set_ylim(-2, 105)
+    left.set_xlabel("detection delay (steps after the onset; 1 = the earliest possible)")
+    top = left.secondary_xaxis("top", functions=(lambda k: k * dt_s, lambda t: t / dt_s))
+    top.set_xticks([t * dt_s for t in ticks], [f"{t * dt_s:g}" for t in ticks])
+    top.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    top.set_xlabel(f"detection delay (s; dt = {dt_s:g} s)")
+    left.set_ylabel("faulted episodes detected within the delay (%)")
+    left.set_title("Detection delay, held-out split", fontsize=11)
+    left.legend(fontsize=7.5, loc="lower right", title="class: detected / faulted episodes", title_fontsize=8)
+    left.grid(alpha=0.3, linewidth=0.4)
+
+    kinds = (  # (kind, legend, alpha, what the annotation says where there is no wheel-step)
+        ("pre-onset", "up to the onset (false by construction)", 1.0, "no step\nbefore onset"),
+        (
+            "healthy wheels",
+            "on the wheels the fault leaves healthy (whole episode)",
+            0.4,
+            "no healthy\nwheel",
+        ),
+    )
+    counts = [d.alarm_counts() for d in detections]
+    rates = np.array([[_per_1000(*c[kind]) for kind, *_ in kinds] for c in counts]).reshape(-1, 2)
+    highest = float(np.nanmax(rates, initial=0.0))
+    top_y = highest if highest > 0 else 1.0
+    x = np.arange(len(detections))
+    bar = 0.38
+    for j, (kind, label, alpha, none) in enumerate(kinds):
+        offset = (j - 0.5) * bar
+        for xi, d, c, rate in zip(x, detections, counts, rates[:, j], strict=True):
+            alarms, steps = c[kind]
+            if steps:
+                right.bar(xi + offset, rate, bar, color=colors[d.fault_class], alpha=alpha, edgecolor="black")
+            note = f"{alarms} / {steps}" if steps else none
+            at = (rate if steps else 0.0) + 0.02 * top_y
+            right.text(xi + offset, at, note, ha="center", va="bottom", rotation=90, fontsize=7.5)
+        right.bar(0, 0, 0, color="grey", alpha=alpha, edgecolor="black", label=label)
+    if detections and highest == 0:
+        right.text(
+            0.5, 0.55, "no false alarm in any class", transform=right.transAxes, ha="center", fontsize=11
+        )
+    right.set_xticks(x, classes)
+    right.set_xlim(-0.6, len(detections) - 0.4)
+    right.set_xlabel("held-out fault class")
+    right.set_ylabel("CUSUM alarms per 1000 wheel-steps")
+    right.set_ylim(0, 1.7 * top_y)
+    right.set_title("False alarms, held-out split (annotated: alarms / wheel-steps)", fontsize=11)
+    right.legend(fontsize=8, loc="upper left", title="CUSUM alarms", title_fontsize=8)
+    right.grid(axis="y", alpha=0.3)
+
+    n = detections[0].faulted.size if detections else 0
+    fig.suptitle(
+        f"fdir's wheel fault detector on the held-out actuator classes (n = {n} episodes per class)",
+        fontsize=12,
+    )
+    fig.tight_layout()
+    return fig
+
+
 def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``stem.png`` and ``stem.svg`` and close it."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -489,7 +590,9 @@ def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
 
 
 def write_figures(study: Study, out_dir: Path) -> list[Path]:
-    """Every figure of the study, PNG and SVG, into ``out_dir``."""
+    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES``, then on a version with
+    mid-flight onsets ``settled_vs_onset`` and, where ``fdir``'s detector was measured,
+    ``fdir_detection``."""
     battery = study.battery.results
     colors = _colors([r.controller for r in battery])  # one colour per controller in every figure
     sensor = study.sensor
@@ -505,4 +608,6 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
     if has_onset(study.spec):
         privileged = {r.controller: r.privileged for r in battery}
         figures["settled_vs_onset"] = settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)
+    if study.detection:
+        figures["fdir_detection"] = fdir_detection(study.detection)
     return [p for stem, fig in figures.items() for p in save(fig, out_dir, stem)]

@@ -3,7 +3,9 @@
 ``run_study`` scores every registered controller of a benchmark version on its held-out actuator
 classes, and a deployed controller plus the ``teacher`` on its sensor faults, with exactly the calls
 ``scftc eval`` makes (``evaluate.evaluate_cells``: every number here is the number ``scftc eval``
-prints for the same cell), and flies one pinned episode per class for the trajectory figure.
+prints for the same cell), and flies one pinned episode per class for the trajectory figure. On a
+version with mid-flight onsets it also measures ``fdir``'s wheel detector (detection delay, false
+alarms) on the battery's own held-out actuator episodes.
 ``study/tables.py`` turns the records into tables, ``study/figures.py`` into figures.
 """
 
@@ -31,6 +33,7 @@ if TYPE_CHECKING:
 
 Regime = Literal["controllable", "shield-only"]
 DEPLOYED_PREFERENCE = "rma_dob"  # the deployed controller of the source study
+DETECTOR = "fdir"  # the controller whose wheel detector the study measures (versions with onsets)
 ORACLE_FOR_SENSORS = "teacher"
 BACKEND = "numpy"
 REGIME_RULE = (
@@ -116,12 +119,89 @@ class Trajectory:
 
 
 @dataclass(frozen=True)
+class Detection:
+    """``fdir``'s wheel detector on the held-out episodes of one actuator class: what
+    ``baselines.v2.fdir.detection_stats`` returns for the very episodes the battery flew.
+
+    The test of step ``k`` looks at the step ``k - 1`` just flown, so a delay of 1 step is the
+    earliest possible.
+
+    Attributes:
+        delay_steps: ``(n,)`` int, first confirmed change on a faulted wheel minus the onset, in
+            steps (-1 where none was confirmed after the onset, or no wheel is faulted);
+        faulted: ``(n,)`` bool, some wheel's ``(g, b, friction)`` differs from the healthy one;
+        pre_onset_alarms, pre_onset_steps: ``(n,)`` int, wheel-steps with a CUSUM alarm up to the
+            onset (false by construction) and the wheel-steps tested there (their exposure);
+        healthy_alarms, healthy_wheel_steps: ``(n,)`` int, wheel-steps with a CUSUM alarm over the
+            whole episode on the wheels the fault leaves healthy, and those wheels' wheel-steps;
+        dt_s: the step in s (a delay of ``d`` steps is ``d * dt_s`` s).
+    """
+
+    fault_class: str
+    delay_steps: np.ndarray
+    faulted: np.ndarray
+    pre_onset_alarms: np.ndarray
+    pre_onset_steps: np.ndarray
+    healthy_alarms: np.ndarray
+    healthy_wheel_steps: np.ndarray
+    dt_s: float
+
+    @property
+    def detected(self) -> np.ndarray:
+        """``(n,)`` bool: faulted episodes with a confirmed change on a faulted wheel after the onset."""
+        return self.faulted & (self.delay_steps >= 0)
+
+    @property
+    def delays(self) -> np.ndarray:
+        """``(k,)`` int: the delays in steps of the ``k`` detected episodes, ascending."""
+        return np.sort(self.delay_steps[self.detected])
+
+    @property
+    def n_faulted(self) -> int:
+        return int(self.faulted.sum())
+
+    @property
+    def n_missed(self) -> int:
+        """Faulted episodes never detected (no confirmed change on a faulted wheel after the onset)."""
+        return int((self.faulted & ~self.detected).sum())
+
+    def delay_summary(self) -> tuple[int, int, int] | None:
+        """``(median, 95th percentile, max)`` of the delays in steps (observed values: the
+        inverted-CDF percentile), ``None`` where no episode was detected."""
+        d = self.delays
+        if d.size == 0:
+            return None
+        median, p95 = np.percentile(d, [50, 95], method="inverted_cdf")
+        return int(median), int(p95), int(d[-1])
+
+    def alarm_counts(self) -> dict[str, tuple[int, int]]:
+        """``{"pre-onset": (alarms, wheel-steps), "healthy wheels": (alarms, wheel-steps)}``,
+        summed over the episodes."""
+        return {
+            "pre-onset": (int(self.pre_onset_alarms.sum()), int(self.pre_onset_steps.sum())),
+            "healthy wheels": (int(self.healthy_alarms.sum()), int(self.healthy_wheel_steps.sum())),
+        }
+
+
+@dataclass(frozen=True)
 class Study:
     spec: BenchmarkSpec
     battery: BatteryReport
     sensor: SensorReport
     trajectories: list[Trajectory]
     runs: dict[str, list[CellRun]]  # per controller, its battery and sensor cells (episode outcomes)
+    detection: tuple[Detection, ...] = ()  # fdir's detector per held-out actuator class, if measured
+
+
+def has_onset(spec: BenchmarkSpec) -> bool:
+    """Whether the version's faults start mid-flight (``scftc-v2``)."""
+    return hasattr(spec.splits["test"], "onset_s")
+
+
+def measures_detection(spec: BenchmarkSpec, entries: dict[str, ControllerSpec]) -> bool:
+    """Whether the study measures ``fdir``'s wheel detector: faults start mid-flight (so there is a
+    delay to measure and a healthy stretch to raise false alarms on) and ``fdir`` is registered."""
+    return has_onset(spec) and DETECTOR in entries
 
 
 def sensor_bias_deg(sensor: str) -> float | None:
@@ -147,13 +227,15 @@ def sensor_controller_count(entries: dict[str, ControllerSpec]) -> int:
 
 def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
     """Simulation steps ``run_study`` takes (progress bar total): the battery, the trajectories
-    (one batch per class and controller) and the sensor table."""
+    (one batch per class and controller), the sensor table and ``fdir``'s detection flights (one
+    batch per actuator class, where measured)."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
+    detection = n_classes if measures_detection(spec, entries) else 0
     if sensors_in_battery(spec):
-        return len(entries) * (2 * n_classes + n_sensors) * spec.steps
+        return (len(entries) * (2 * n_classes + n_sensors) + detection) * spec.steps
     rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(entries)
-    return rollouts * spec.steps
+    return (rollouts + detection) * spec.steps
 
 
 def choose_deployed(battery: list[EvalResult]) -> tuple[str | None, str]:
@@ -263,6 +345,40 @@ def example_trajectories(
     return out
 
 
+def fdir_detection(
+    entry: ControllerSpec, spec: BenchmarkSpec, runs: list[CellRun], progress: Progress = NO_PROGRESS
+) -> tuple[Detection, ...]:
+    """``fdir`` (``entry``) flown again through the episodes of its held-out actuator cells in
+    ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn again after a cluster run),
+    measured by ``detection_stats``. One ``Detection`` per actuator cell, in ``runs``' order."""
+    from scftc_cli.baselines.v2.fdir import FDIR, detection_stats
+
+    controller = entry.make()
+    if not isinstance(controller, FDIR):
+        raise StudyError(f"controller `{entry.name}` is not the fdir controller; cannot measure its detector")
+    out = []
+    for run in (r for r in runs if r.cell.sensor is None):
+        progress.describe(f"detection: {entry.name} on {run.cell.fault_class}")
+        try:
+            stats = detection_stats(run.drawn(), controller.params)
+        except Exception as err:
+            raise StudyError(f"controller `{entry.name}` failed on {run.cell.fault_class}: {err}") from err
+        progress.advance(spec.steps)  # detection_stats flies one batch without a progress hook
+        out.append(
+            Detection(
+                fault_class=run.cell.fault_class,
+                delay_steps=stats["delay_steps"],
+                faulted=stats["faulted"],
+                pre_onset_alarms=stats["pre_onset_alarms"],
+                pre_onset_steps=stats["pre_onset_steps"],
+                healthy_alarms=stats["healthy_alarms"],
+                healthy_wheel_steps=stats["healthy_wheel_steps"],
+                dt_s=spec.dt_s,
+            )
+        )
+    return tuple(out)
+
+
 def run_study(
     spec: BenchmarkSpec,
     n_faults: int | None = None,
@@ -271,7 +387,8 @@ def run_study(
     progress: Progress = NO_PROGRESS,
     runner: Runner | None = None,
 ) -> Study:
-    """Run the battery, the sensor table and the example trajectories of ``spec``'s version.
+    """Run the battery, the sensor table and the example trajectories of ``spec``'s version, and
+    ``fdir``'s detection measurements where ``measures_detection``.
 
     Args:
         n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
@@ -330,4 +447,9 @@ def run_study(
         ),
         trajectories=example_trajectories(battery_order, spec, progress),
         runs=runs,
+        detection=(
+            fdir_detection(entries[DETECTOR], spec, runs[DETECTOR], progress)
+            if measures_detection(spec, entries)
+            else ()
+        ),
     )

@@ -1,15 +1,17 @@
-"""The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records."""
+"""The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records, and
+``fdir_detection.md`` where the study measured ``fdir``'s wheel detector (``scftc-v2``)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from pydantic import BaseModel
 
 from scftc_cli.records import CellResult, EvalResult
 from scftc_cli.render import markdown_table, pct
-from scftc_cli.spec import DEFAULT_BENCHMARK
-from scftc_cli.study.run import Study
+from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
+from scftc_cli.study.run import Detection, Study
 
 
 def _label(result: EvalResult) -> str:
@@ -124,12 +126,61 @@ def sensor_markdown(study: Study) -> str:
     return head + markdown_table(headers, rows)
 
 
+def detection_rows(detections: Sequence[Detection]) -> list[list[str]]:
+    """One row per class: detected / faulted episodes, delay median / 95th percentile / max in
+    steps (``-`` where none was detected), pre-onset and healthy-wheel alarms over their
+    wheel-steps."""
+    rows = []
+    for d in detections:
+        summary = d.delay_summary()
+        counts = d.alarm_counts()
+        rows.append(
+            [
+                d.fault_class,
+                f"{int(d.detected.sum())}/{d.n_faulted}",
+                " / ".join(str(v) for v in summary) if summary else "- / - / -",
+                "{} / {}".format(*counts["pre-onset"]),
+                "{} / {}".format(*counts["healthy wheels"]),
+            ]
+        )
+    return rows
+
+
+DETECTION_HEADERS = (
+    "class",
+    "episodes with a detected change / faulted episodes",
+    "delay median / 95th pct / max (steps)",
+    "pre-onset alarms / wheel-steps",
+    "healthy-wheel alarms / wheel-steps",
+)
+
+
+def detection_markdown(spec: BenchmarkSpec, detections: Sequence[Detection]) -> str:
+    """``fdir``'s wheel detector on the held-out actuator classes (``Study.detection``):
+    ``detection_rows`` under a head that says what the numbers count."""
+    n = detections[0].faulted.size if detections else 0
+    dt_s = spec.dt_s
+    head = (
+        f"# fdir: fault detection on the held-out actuator classes ({spec.version})\n\n"
+        f"n = {n} episodes per class, the battery's own held-out (test split) episodes, flown again by "
+        "`detection_stats` (`scftc_cli/baselines/v2/fdir.py`). Delay: the first confirmed change on a "
+        f"faulted wheel after the onset, in steps of {dt_s:g} s (the test of step k looks at step k - 1, "
+        "so 1 is the earliest possible); a faulted episode without one is never detected. Pre-onset "
+        "alarms: wheel-steps with a CUSUM alarm up to the onset (false by construction); healthy-wheel "
+        "alarms: over the whole episode, on the wheels the fault leaves healthy. Same columns as the "
+        "train-cell table of docs/fdir.md, section 6.\n\n"
+        f"Regenerate with `{_regenerate(spec.version)}`.\n\n"
+    )
+    return head + markdown_table(DETECTION_HEADERS, detection_rows(detections))
+
+
 def _dump_json(model: BaseModel) -> str:
     return model.model_dump_json(by_alias=True, indent=2) + "\n"
 
 
 def write_tables(study: Study, out_dir: Path) -> list[Path]:
-    """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``."""
+    """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``, and
+    ``fdir_detection.md`` where the study measured ``fdir``'s detector."""
     out_dir.mkdir(parents=True, exist_ok=True)
     contents = {
         "battery.md": battery_markdown(study),
@@ -137,6 +188,8 @@ def write_tables(study: Study, out_dir: Path) -> list[Path]:
         "sensor.md": sensor_markdown(study),
         "sensor.json": _dump_json(study.sensor),
     }
+    if study.detection:
+        contents["fdir_detection.md"] = detection_markdown(study.spec, study.detection)
     paths = []
     for name, text in contents.items():
         path = out_dir / name
