@@ -103,8 +103,12 @@ TRAINERS: dict[str, dict[str, str]] = {
     "scftc-v2": {
         "pid": "scftc_cli.training.tuning:tune_pid",
         "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
+        "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
         "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
         "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
+        "rma_student": "scftc_cli.training.v2_rma:train_student",
+        "rma_dob": "scftc_cli.training.v2_rma:train_student",
+        "e2e_ppo": "scftc_cli.training.v2_ppo:train_e2e_ppo",
         "fdir": "scftc_cli.training.v2_fdir:tune_fdir",
     },
 }

@@ -49,6 +49,7 @@ from scftc_cli.baselines.plan import PlanParams, RLSPlan
 from scftc_cli.baselines.rls import NAME as RLS
 from scftc_cli.baselines.rls import RLSDob, RLSParams
 from scftc_cli.baselines.v2 import adaptive as v2_adaptive
+from scftc_cli.baselines.v2 import icl as v2_icl
 from scftc_cli.baselines.v2 import nussbaum as v2_nussbaum
 from scftc_cli.baselines.v2 import pid as v2_pid
 from scftc_cli.baselines.v2 import rls as v2_rls
@@ -257,6 +258,24 @@ V2_SPECS: dict[str, TuneSpec] = {
             Dim("gamma_kappa", 0.0, 1.5),
             Dim("sigma_mod", 0.0, 0.1),
             Dim("dead_zone", 0.0, 0.02),
+            *_DITHER,
+            Dim("detect_threshold", 0.005, 0.2, log=True),
+            Dim("detect_steps", 1, 6, integer=True),
+        ),
+        benchmark=V2.version,
+        classes=V2_CLASSES,
+    ),
+    v2_icl.NAME: TuneSpec(
+        v2_icl.NAME,
+        v2_icl.ICLParams,
+        v2_icl.ICLAdaptive,
+        (
+            Dim("window", 1, 8, integer=True),
+            Dim("stack_size", 3, 20, integer=True),
+            Dim("gamma_cl", 0.1, 1.9, log=True),  # >= 0.1: the concurrent-learning term stays in the law
+            Dim("gamma_inst", 0.0, 1.9),
+            Dim("offset_ratio", 0.01, 1.0, log=True),
+            Dim("friction_ratio", 0.01, 1.0, log=True),
             *_DITHER,
             Dim("detect_threshold", 0.005, 0.2, log=True),
             Dim("detect_steps", 1, 6, integer=True),

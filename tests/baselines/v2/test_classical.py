@@ -1,5 +1,5 @@
 """The ``scftc-v2`` classical ports that are tuned and registered: ``pid``, ``classical_adaptive``,
-``nussbaum``, ``rls_dob``
+``icl_adaptive``, ``nussbaum``, ``rls_dob``
 (``fdir`` has its own tests)."""
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from scftc_cli.baselines.v2.estimators import (
     mean_coulomb_shape,
     null_direction,
 )
+from scftc_cli.baselines.v2.icl import ICLAdaptive, ICLParams, _eig_extremes
 from scftc_cli.baselines.v2.nussbaum import Nussbaum, NussbaumParams
 from scftc_cli.baselines.v2.pid import PID, PIDParams
 from scftc_cli.baselines.v2.rls import RLSDob, RLSParams
@@ -35,10 +36,11 @@ from scftc_cli.spec import V2
 from scftc_cli.training import TrainRequest, get_trainer, tuning
 
 BED = bed_for("scftc-v2")
-NAMES = ("pid", "classical_adaptive", "nussbaum", "rls_dob")
+NAMES = ("pid", "classical_adaptive", "icl_adaptive", "nussbaum", "rls_dob")
 DEFAULTS = {
     "pid": lambda: PID(PIDParams()),
     "classical_adaptive": lambda: ClassicalAdaptive(AdaptiveParams()),
+    "icl_adaptive": lambda: ICLAdaptive(ICLParams(gamma_inst=1.0, offset_ratio=0.1, friction_ratio=0.1)),
     "nussbaum": lambda: Nussbaum(NussbaumParams()),
     "rls_dob": lambda: RLSDob(RLSParams()),
 }
@@ -278,6 +280,49 @@ def test_the_allocation_of_all_wheels_estimated_dead_is_zero_not_an_error_in_eit
     fused = estimators.law_command(demand, gains, zeros, zeros, zeros + 100.0, wheels, since, 0.0, 0)
     reference = estimators.estimated_command(demand, gains, zeros, zeros, zeros + 100.0, wheels)
     assert np.all(np.isfinite(fused)) and np.all(fused[0] == reference[0])
+
+
+def test_icl_stack_converges_to_the_exact_parameters_with_exciting_data():
+    context = public_context(3)
+    controller = ICLAdaptive(ICLParams(window=2, stack_size=8, gamma_cl=1.0, gamma_inst=0.0))
+    controller.reset(3, context)
+    truth = np.array([[-0.7, 0.12, 0.02], [1.4, -0.05, 0.1], [0.0, 0.0, 0.005]])  # (g, b, kappa) per row
+    rng = np.random.default_rng(1)
+    for k in range(300):
+        a = rng.uniform(-0.6, 0.6, (3, 4))
+        s = np.where(rng.random((3, 4)) < 0.5, -1.0, 1.0) if k % 7 else rng.uniform(-1, 1, (3, 4))
+        z = truth[:, None, 0] * a + truth[:, None, 1] + truth[:, None, 2] * s
+        controller._adapt(WheelSample(z=z, a=a, s=s, speed_rad_s=np.full((3, 4), 100.0)))
+    assert np.abs(controller.phi - truth[:, None, :]).max() < 1e-3
+
+
+def test_icl_purges_its_stack_when_the_fault_changes():
+    context = public_context(1)
+    controller = ICLAdaptive(ICLParams(window=2, stack_size=6, gamma_cl=1.0, gamma_inst=0.5))
+    controller.reset(1, context)
+    rng = np.random.default_rng(2)
+
+    def feed(g, steps):
+        for _ in range(steps):
+            a = rng.uniform(-0.5, 0.5, (1, 4))
+            s = -np.ones((1, 4))
+            controller._adapt(WheelSample(z=g * a + 0.005 * s, a=a, s=s, speed_rad_s=np.full((1, 4), 100.0)))
+
+    feed(np.ones(4), 60)
+    assert controller.purged[0] == 0
+    feed(np.array([1.0, -1.0, 1.0, 1.0]), 200)
+    assert controller.purged[0] >= 1
+    assert np.abs(controller.phi[0, :, 0] - [1.0, -1.0, 1.0, 1.0]).max() < 0.02
+
+
+def test_eigenvalue_extremes_match_numpy():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        m = rng.normal(size=(3, 3))
+        m = m @ m.T
+        low, high = _eig_extremes(m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2], m[2, 2])
+        expected = np.linalg.eigvalsh(m)
+        assert low == pytest.approx(expected[0], abs=1e-9) and high == pytest.approx(expected[-1], rel=1e-9)
 
 
 def test_pid_integrator_removes_a_gyro_bias_offset():
