@@ -142,9 +142,9 @@ class PPOBudget:
 
 BUDGETS: dict[str, PPOBudget] = {
     "quick": PPOBudget(rollouts=4, n_envs=16, minibatch_envs=8, n_epochs=2, eval_every=2, eval_faults=2),
-    # 160 rollouts of 128 episodes: 8.2 M env steps (5 x v1's 1.6 M); wall time in the weights'
-    # provenance (one torch thread)
-    "full": PPOBudget(rollouts=160),
+    # 480 rollouts of 128 episodes: 24.6 M env steps (15 x v1's 1.6 M), 26 min on one torch thread
+    # of this 2-core machine (shared with a tuning run)
+    "full": PPOBudget(rollouts=480, eval_every=40),
 }
 
 
