@@ -1,4 +1,5 @@
-"""The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records, and
+"""The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records,
+``settled_by_hub.md`` (the settled rate on each part of the held-out hub-inertia range), and
 ``fdir_detection.md`` where the study measured ``fdir``'s wheel detector (``scftc-v2``)."""
 
 from __future__ import annotations
@@ -6,10 +7,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 from pydantic import BaseModel
 
 from scftc_cli.records import CellResult, EvalResult
 from scftc_cli.render import markdown_table, pct
+from scftc_cli.scoring import gate_stat
 from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
 from scftc_cli.study.run import Detection, Study
 
@@ -174,12 +177,62 @@ def detection_markdown(spec: BenchmarkSpec, detections: Sequence[Detection]) -> 
     return head + markdown_table(DETECTION_HEADERS, detection_rows(detections))
 
 
+def hub_parts(spec: BenchmarkSpec) -> tuple[tuple[float, float], ...]:
+    """The held-out hub-inertia range's parts ``((lo, hi), ...)`` (scale on the nominal inertia),
+    or ``()`` where the test split draws it from one interval."""
+    inertia = getattr(spec.splits["test"], "inertia_scale", None)
+    parts = getattr(inertia, "parts", ())
+    return tuple((p.lo, p.hi) for p in parts) if len(parts) > 1 else ()
+
+
+def hub_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """controller -> ``(inertia_scale (n,), settled (n,) bool)`` over its held-out actuator cells."""
+    out = {}
+    for r in study.battery.results:
+        scale, settled = [], []
+        for run in study.runs[r.controller]:
+            if run.cell.sensor is None:
+                scale.append(np.asarray(run.drawn().fault.inertia_scale))  # type: ignore[attr-defined]
+                settled.append(run.outcomes.settled)
+        out[r.controller] = (np.concatenate(scale), np.concatenate(settled))
+    return out
+
+
+def hub_markdown(study: Study) -> str:
+    """Settled rate [Wilson 95 %] of every controller on each part of the held-out hub-inertia
+    range, pooled over the actuator classes: the split holds hubs lighter and heavier than any
+    trained on, and a law tuned for one inertia may hold on one side and not the other."""
+    parts = hub_parts(study.spec)
+    outcomes = hub_outcomes(study)
+    rows = []
+    for r in study.battery.results:
+        scale, settled = outcomes[r.controller]
+        row = [_label(r)]
+        for lo, hi in parts:
+            inside = (scale >= lo) & (scale <= hi)
+            row.append(
+                f"{pct(gate_stat(settled[inside]))} (n = {inside.sum()})" if inside.any() else "- (n = 0)"
+            )
+        rows.append(row)
+    train = study.spec.splits["train"].inertia_scale
+    head = (
+        f"# Settled rate by hub inertia ({study.spec.version}, held-out split)\n\n"
+        "Pooled over the actuator classes; the columns are the parts of the held-out range of the hub "
+        f"inertia's scale on its nominal value (train: {train.parts[0].lo:g} to {train.parts[-1].hi:g}). "
+        "Settled %, Wilson 95 % interval.\n\n"
+        f"Regenerate with `{_regenerate(study.spec.version)}`.\n\n"
+    )
+    headers = ["controller", *(f"inertia x {lo:g} to {hi:g}" for lo, hi in parts)]
+    return head + markdown_table(headers, rows)
+
+
 def _dump_json(model: BaseModel) -> str:
     return model.model_dump_json(by_alias=True, indent=2) + "\n"
 
 
 def write_tables(study: Study, out_dir: Path) -> list[Path]:
-    """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``, and
+    """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``,
+    ``settled_by_hub.md`` where the held-out hub inertia has several parts, and
     ``fdir_detection.md`` where the study measured ``fdir``'s detector."""
     out_dir.mkdir(parents=True, exist_ok=True)
     contents = {
@@ -188,6 +241,8 @@ def write_tables(study: Study, out_dir: Path) -> list[Path]:
         "sensor.md": sensor_markdown(study),
         "sensor.json": _dump_json(study.sensor),
     }
+    if hub_parts(study.spec):
+        contents["settled_by_hub.md"] = hub_markdown(study)
     if study.detection:
         contents["fdir_detection.md"] = detection_markdown(study.spec, study.detection)
     paths = []

@@ -44,6 +44,26 @@ def study_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow
+def test_settled_by_hub_splits_each_controllers_battery_episodes_between_the_held_out_hub_parts(
+    study_dir: Path,
+) -> None:
+    battery = {r["controller"]: r for r in json.loads((study_dir / "battery.json").read_text())["results"]}
+    rows = [
+        line.split(" | ")
+        for line in (study_dir / "settled_by_hub.md").read_text().splitlines()[-len(battery) :]
+    ]
+    assert len(rows[0]) == 3  # controller and the two held-out parts (lighter, heavier than train)
+    for row in rows:
+        name = row[0].strip("| ").removesuffix(" (privileged)")
+        n = [int(cell.rsplit("(n = ", 1)[1].rstrip(") |")) for cell in row[1:]]
+        rates = [float(cell.split()[0]) if not cell.startswith("-") else 0.0 for cell in row[1:]]
+        cells = [c for c in battery[name]["cells"] if c["sensor"] is None]
+        assert sum(n) == sum(c["n"] for c in cells)
+        settled = sum(c["settled"]["k"] for c in cells)
+        assert sum(round(r * k / 100) for r, k in zip(rates, n, strict=True)) == settled
+
+
 def _eval_json(*args: str) -> dict:
     sizes = ("--n-faults", str(N_FAULTS), "--n-seeds", str(N_SEEDS), "--format", "json")
     result = runner.invoke(app, ["eval", *args, *sizes])
