@@ -44,8 +44,9 @@ from scftc_cli.sim.v2.faults import WheelEpisodes, check_cell, sample_episodes_b
 from scftc_cli.spec import V2
 
 ENV_ID = "scftc/AttitudeFTC-v2"
-"""Not ``scftc/AttitudeFTC-v2``: gymnasium reads that as a newer version of ``AttitudeFTC-v1`` and
-would tell every v1 user that v1 "is out of date"; scftc-v2 is another track, not a replacement."""
+"""The suffix is the benchmark version. Gymnasium reads it as a newer version of
+``AttitudeFTC-v1`` and would warn v1 users that v1 "is out of date"; scftc-v2 is another track,
+so registering the ids silences that one warning (``envs/__init__.py``)."""
 DEFAULT_CLASSES: tuple[str, ...] = V2.fault_classes
 DEFAULT_SENSORS: tuple[str | None, ...] = (None,)
 ACTION_DIM = V2.action_dim

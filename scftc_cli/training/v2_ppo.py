@@ -256,7 +256,8 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
                     prev = np.clip(sample.numpy(), -1.0, 1.0)
                 final = torch.from_numpy(np.concatenate((info["final_obs"], prev), axis=1)) * scale
                 last_value = model.critic(final[None], c_state)[0][0].numpy()
-            assert truncated.all(), "a rollout is one whole episode per environment"
+            if not truncated.all():  # pragma: no cover - the environment's contract
+                raise ScftcError("a PPO rollout must be one whole episode per environment")
             reward_scale.episode_end()
             advantages = gae(rewards, values, last_value, budget.gamma, budget.gae_lambda)
             targets = torch.from_numpy((advantages + values).astype(np.float32))

@@ -136,7 +136,9 @@ class RMABudget:
     episodes: int  # fresh episodes flown per iteration
     grad_steps: int  # gradient steps per iteration
     minibatch: int  # (episode, wheel) sequences per gradient step
-    buffer_iterations: int  # DAgger aggregation: keep this many iterations' data
+    # DAgger aggregation: a ring of segments as large as 2 x this many iterations' wheel sequences
+    # (a restart cuts a sequence into segments)
+    buffer_iterations: int
     teacher_fraction: float  # teacher mixing decays from 1 to 0 over this fraction of the run
     lr: float
     eval_every: int

@@ -21,8 +21,8 @@ with the diagonal adaptation gain ``Gamma = diag(1, offset_ratio, friction_ratio
 excited direction, finite excitation suffices), ``kappa >= 0`` and ``|g| <= g_max``. The ratios
 matter while the data have not yet separated gain from offset (commands near one value): they say
 which of the two an unexplained torque is first put on. A square-wave dither along the null space of the
-estimated wheel array, each level held one window, for the first ``dither_steps`` steps after the
-stack (re)opened.
+estimated wheel array, each level held one window, excites the data for the first ``dither_steps``
+steps after the stack (re)opened.
 
 Mid-flight faults: a stack remembers the healthy plant forever, and its term would pull the
 estimate back to it. ``estimators.ChangeDetector`` watches the prediction error of each wheel once

@@ -25,7 +25,8 @@ linear zone or a zero crossing).
 - ``rma_student`` fits ``y = g a`` (fault classes ``sign``, ``gain``, ``loss``); a wheel whose
   estimate is within ``dead_below`` of zero is allocated as dead.
 - ``rma_dob`` fits first differences, ``dy = g da`` (exact under any constant offset and, away
-  from the linear zone, under any friction), and reads no feature that an offset shifts; a
+  from the linear zone, under any friction), and reads none of the fit's features that an offset
+  shifts (only the clip flags, which an offset can move, still depend on it); a
   per-wheel disturbance observer estimates the offset and the friction from the residual
   ``y - g_hat a = b + d psi`` (recursive least squares on ``[1, psi]``, ``d = (m - 1) phi0``), which
   the allocation cancels per wheel (``law.allocate``).
@@ -133,7 +134,7 @@ class DetectorConfig:
     rho: float = 0.03  # relative error of the gain estimate the test tolerates (a 10 % change is z^2 ~ 11)
     drift: float = 9.0  # z^2 below 9 (3 sigma) drains the statistic
     threshold: float = 40.0
-    z2_max: float = 400.0  # one outlier alone cannot raise an alarm... but 20 sigma can
+    z2_max: float = 400.0  # caps one sample's weight; a single sample beyond 7 sigma (z^2 > 49) still alarms
     refractory: int = 10  # no second alarm within this many steps of a restart
 
 
@@ -337,7 +338,7 @@ def noise_sigma(context: Context) -> float:
     return 1.05 * math.sqrt(2.0) * per_reading
 
 
-class ChangeDetector:
+class CusumDetector:
     """Per-wheel CUSUM on the normalized innovation (``DetectorConfig``), ``(n, m)``."""
 
     def __init__(self, config: DetectorConfig, sigma_y: float, shape: tuple[int, int]) -> None:
@@ -485,7 +486,9 @@ class WheelEstimator:
     batch, one step at a time.
 
     Per step: ``gain = est.observe(gyro, tach)`` ``(n, m)`` (latched where frozen) and
-    ``est.offset()``, then ``est.hold(command, gain, offset)`` with the command as applied.
+    ``est.offset()``, then ``est.hold(command, offset)`` with the command as applied. The change
+    test measures the next step against the student's own latched gain (``own_gain``), also where
+    the trainer allocates with the teacher's: a change must re-open the student's latch.
     Kept for the trainer and the tests: ``features`` ``(n m, F)`` and ``restarted`` ``(n m,)`` of
     the last step, ``active`` (the rows the network ran on), ``raw`` (the live estimate).
     """
@@ -497,7 +500,7 @@ class WheelEstimator:
         shape = (n, m)
         self.shape = shape
         self.meter = WheelMeter(context)
-        self.detector = ChangeDetector(config.detector, noise_sigma(context), shape)
+        self.detector = CusumDetector(config.detector, noise_sigma(context), shape)
         self.latch = WheelLatch(config.latch, shape)
         self.observer = OffsetObserver(config.observer_config, noise_sigma(context), shape)
         self.state = net.start(n * m)
@@ -505,7 +508,8 @@ class WheelEstimator:
         self.command = np.zeros(shape)  # a_k, held over the coming step
         self.last_a, self.last_y = np.zeros(shape), np.zeros(shape)
         self.last_valid = np.zeros(shape, dtype=bool)  # whether the last sample was usable for diffs
-        self.gain_used = np.ones(shape)  # the student's estimate when the command was chosen
+        self.gain_used = np.ones(shape)  # the student's own estimate when the command was chosen
+        self.own_gain = np.ones(shape)  # the student's latched estimate of this step
         self.offset_used = np.zeros((*shape, 2))  # and the observer's (b_hat, d_hat)
         self.after_alarm = np.zeros(shape)
         self.excitation = np.zeros(shape)
@@ -566,7 +570,7 @@ class WheelEstimator:
         self.active = ~self.latch.latched.reshape(-1) | self.restarted
         self.net.step(self.features, self.state, self.active, self.restarted)
         self.raw = np.where(self.active.reshape(shape), self.state.gain.reshape(shape), self.raw)
-        self.gain = self.latch.update(self.raw, self.excitation)
+        self.gain = self.own_gain = self.latch.update(self.raw, self.excitation)
         if teacher is not None:
             self.gain = np.where(teacher[0], teacher[1], self.gain)
         if self.config.observer and sample is not None:
@@ -590,14 +594,15 @@ class WheelEstimator:
             return np.zeros((*self.shape, 2))
         return self.observer.theta.copy()
 
-    def hold(self, command: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> None:
-        """Record the command ``(n, m)`` applied over the coming step, and the gain ``(n, m)``
-        and ``(b_hat, d_hat)`` ``(n, m, 2)`` the innovation of that step is measured against."""
+    def hold(self, command: np.ndarray, offset: np.ndarray) -> None:
+        """Record the command ``(n, m)`` applied over the coming step, and the estimates the
+        innovation of that step is measured against: the student's own gain ``(n, m)`` and the
+        observer's ``(b_hat, d_hat)`` ``(n, m, 2)``."""
         self.command = np.clip(command, -1.0, 1.0).copy()
-        self.gain_used, self.offset_used = gain.copy(), offset.copy()
+        self.gain_used, self.offset_used = self.own_gain.copy(), offset.copy()
 
 
-def effective_gain(gain: np.ndarray, dead_below: float) -> np.ndarray:
+def student_effective_gain(gain: np.ndarray, dead_below: float) -> np.ndarray:
     """The gains ``(n, m)`` the allocation divides by: the wheel of smallest ``|g_hat|`` counts as
     dead (zero) if that is below ``dead_below``; every other estimate is kept at least
     ``dead_below`` away from zero, sign kept (three working wheels are needed for three axes, and
@@ -665,10 +670,10 @@ class StudentController(Controller):
         # not clamped at zero: while a wheel keeps one direction only b + d psi is identified, and
         # the pair must be used as estimated (friction_nm is linear in the Coulomb level)
         coulomb = wheels.coulomb_nm + offset[..., 1] * wheels.u_max_nm
-        effective = effective_gain(gain, self.config.dead_below)
+        effective = student_effective_gain(gain, self.config.dead_below)
         friction = friction_nm(tach, coulomb, wheels)
         command = allocate(demand, allocation(effective, wheels), effective, friction, bias, wheels)
-        est.hold(command, est.gain, offset)
+        est.hold(command, offset)
         return command
 
 

@@ -17,14 +17,14 @@ from scftc_cli.baselines.params import WEIGHTS_DIR
 from scftc_cli.baselines.v2.ppo import E2EPPO, PolicyConfig, load_policy, policy_input
 from scftc_cli.baselines.v2.rma import (
     N_FEATURES,
-    ChangeDetector,
+    CusumDetector,
     DetectorConfig,
     ObserverConfig,
     OffsetObserver,
     StudentConfig,
     StudentController,
-    effective_gain,
     load_student,
+    student_effective_gain,
 )
 from scftc_cli.protocol import Context
 from scftc_cli.registry import make_controller
@@ -273,7 +273,7 @@ def test_observer_separates_offset_and_friction_once_the_wheel_reverses() -> Non
 
 def test_effective_gain_allocates_at_most_one_dead_wheel() -> None:
     gain = np.array([[0.02, -0.05, 1.2, 0.9], [1.0, -0.6, 0.5, 0.0], [0.3, -0.2, 1.0, 1.0]])
-    out = effective_gain(gain, 0.1)
+    out = student_effective_gain(gain, 0.1)
     assert np.array_equal(out[0], [0.0, -0.1, 1.2, 0.9])  # the weakest is dead, the other kept at 0.1
     assert np.array_equal(out[1], [1.0, -0.6, 0.5, 0.0])
     assert np.array_equal(out[2], gain[2])  # nothing below the threshold
@@ -282,7 +282,7 @@ def test_effective_gain_allocates_at_most_one_dead_wheel() -> None:
 def test_change_test_is_quiet_on_noise_and_fires_on_a_change() -> None:
     rng = np.random.default_rng(0)
     sigma = 9e-4
-    detector = ChangeDetector(DetectorConfig(), sigma, (200, 4))
+    detector = CusumDetector(DetectorConfig(), sigma, (200, 4))
     alarms = np.zeros((200, 4), dtype=int)
     for _ in range(400):
         a = rng.uniform(-0.3, 0.3, (200, 4))
@@ -337,7 +337,7 @@ def test_a_latch_frozen_on_the_healthy_wheel_reopens_at_a_late_change(name: str)
     latched, gains = np.stack(controller.latched, axis=1), np.stack(controller.gains, axis=1)
     alarms = np.stack(controller.alarms, axis=1)
     frozen = latched[:, onset - 1]
-    assert frozen.mean() >= 0.75  # most wheels latched on the healthy plant (rma_dob: 20 of 24)
+    assert frozen.mean() >= 0.75  # most wheels latched on the healthy plant before the change
     assert np.allclose(gains[:, onset - 1][frozen], 1.0, atol=0.05)
     fired = alarms[:, onset + 10, 0] > alarms[:, onset - 1, 0]
     assert fired.all()  # the reversed wheel's latch re-opened within 10 steps
