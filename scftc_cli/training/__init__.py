@@ -146,3 +146,9 @@ def train_settled_rates(
     cells = [Cell("train", *c.split("+")) if "+" in c else Cell("train", c) for c in classes]
     runs = evaluate_cells(lambda _cell: make(), spec, cells, n_faults=n_faults, n_seeds=n_seeds)
     return {run.cell.label: run.result.settled.rate for run in runs}
+
+
+def numpy_state(module: Any) -> dict[str, Any]:
+    """A torch module's state dict as float32 numpy arrays: what a learned controller's ``.npz``
+    weights file stores (every trainer saves through this; torch is not imported here)."""
+    return {k: v.detach().float().cpu().numpy().copy() for k, v in module.state_dict().items()}

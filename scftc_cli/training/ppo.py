@@ -30,37 +30,33 @@ from scftc_cli.baselines.ppo import (
     weights_path,
 )
 from scftc_cli.errors import ScftcError
-from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
+from scftc_cli.training import TrainReport, TrainRequest, numpy_state, train_settled_rates
 
 CLASSES = ("sign", "gain", "gain_bias")
 
 
 class RecurrentPolicy(nn.Module):
-    """The actor of sb3-contrib's ``MlpLstmPolicy``: ``(T, B, 9)`` scaled inputs -> mean actions
-    ``(T, B, 3)`` (unclipped) and the new LSTM state. Evaluation runs its weights with the numba
-    kernel (``PolicyNet``)."""
+    """The actor of sb3-contrib's ``MlpLstmPolicy``: ``(T, B, inputs)`` scaled inputs -> mean
+    actions ``(T, B, actions)`` (unclipped) and the new LSTM state; v1's defaults ``(9, 3)``,
+    ``scftc-v2``'s ``(23, 4)`` (``training/v2_ppo.py``). Evaluation runs its weights with the
+    numba kernel (``PolicyNet``)."""
 
-    def __init__(self, config: PolicyConfig) -> None:
+    def __init__(self, config: PolicyConfig, inputs: int = len(OBS_SCALE), actions: int = 3) -> None:
         super().__init__()
-        self.lstm = nn.LSTM(len(OBS_SCALE), config.lstm_hidden)
+        self.lstm = nn.LSTM(inputs, config.lstm_hidden)
         layers: list[nn.Module] = []
         width = config.lstm_hidden
         for units in config.net_arch:
             layers += [nn.Linear(width, units), nn.Tanh()]
             width = units
         self.mlp = nn.Sequential(*layers)
-        self.action = nn.Linear(width, 3)
+        self.action = nn.Linear(width, actions)
 
     def forward(
         self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None
     ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         y, state = self.lstm(x, state)
         return self.action(self.mlp(y)), state
-
-
-def numpy_state(policy: RecurrentPolicy) -> dict[str, np.ndarray]:
-    """``policy``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
-    return {k: v.detach().float().cpu().numpy().copy() for k, v in policy.state_dict().items()}
 
 
 def policy_net(policy: RecurrentPolicy, config: PolicyConfig) -> PolicyNet:

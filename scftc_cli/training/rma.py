@@ -49,7 +49,7 @@ from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.v1 import public_context
 from scftc_cli.sim.v1.faults import sample_episodes
 from scftc_cli.spec import V1
-from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
+from scftc_cli.training import TrainReport, TrainRequest, numpy_state, train_settled_rates
 
 OBSERVER_GAIN = 0.1  # lambda ~ 0.1 keeps the observer pole inside the envelope
 TorchState = tuple[torch.Tensor | None, torch.Tensor | float, torch.Tensor | float]
@@ -109,11 +109,6 @@ class ThetaStudent(nn.Module):
         return theta, state
 
 
-def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
-    """``module``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
-    return {k: v.detach().float().cpu().numpy().copy() for k, v in module.state_dict().items()}
-
-
 @dataclass
 class TorchStudentState:
     """The torch module's recurrent state and the last ``theta_hat`` ``(B,)``."""
@@ -153,7 +148,7 @@ class RMABudget:
     iterations: int
     episodes: int  # fresh episodes flown per iteration
     grad_steps: int  # gradient steps per iteration
-    minibatch: int  # (episode, axis) sequences per gradient step
+    minibatch: int  # (episode, axis) sequences per gradient step (scftc-v2: (episode, wheel))
     buffer_iterations: int  # DAgger aggregation: keep this many iterations' data
     teacher_fraction: float  # teacher mixing decays from 1 to 0 over this fraction of the run
     lr: float

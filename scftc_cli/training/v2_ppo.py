@@ -41,32 +41,11 @@ from scftc_cli.baselines.v2.ppo import (
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.spec import V2
-from scftc_cli.training import TrainReport, TrainRequest
+from scftc_cli.training import TrainReport, TrainRequest, numpy_state
+from scftc_cli.training.ppo import RecurrentPolicy, policy_net
 
 CLASSES = V2.fault_classes
 N_INPUTS = len(OBS_SCALE)
-
-
-class RecurrentPolicy(nn.Module):
-    """The actor: ``(T, B, 23)`` scaled inputs -> mean actions ``(T, B, 4)`` (unclipped) and the
-    new LSTM state; the network the numba kernel (``PolicyNet``) runs in evaluation."""
-
-    def __init__(self, config: PolicyConfig) -> None:
-        super().__init__()
-        self.lstm = nn.LSTM(N_INPUTS, config.lstm_hidden)
-        layers: list[nn.Module] = []
-        width = config.lstm_hidden
-        for units in config.net_arch:
-            layers += [nn.Linear(width, units), nn.Tanh()]
-            width = units
-        self.mlp = nn.Sequential(*layers)
-        self.action = nn.Linear(width, ACTIONS)
-
-    def forward(
-        self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None
-    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
-        y, state = self.lstm(x, state)
-        return self.action(self.mlp(y)), state
 
 
 class Critic(nn.Module):
@@ -91,7 +70,7 @@ class ActorCritic(nn.Module):
 
     def __init__(self, config: PolicyConfig, log_std_init: float) -> None:
         super().__init__()
-        self.actor = RecurrentPolicy(config)
+        self.actor = RecurrentPolicy(config, N_INPUTS, ACTIONS)
         self.critic = Critic(config)
         self.log_std = nn.Parameter(torch.full((ACTIONS,), log_std_init))
         # sb3's initialization: orthogonal, small action head, unit value head
@@ -101,16 +80,6 @@ class ActorCritic(nn.Module):
                 nn.init.zeros_(module.bias)
         nn.init.orthogonal_(self.actor.action.weight, gain=0.01)
         nn.init.orthogonal_(self.critic.value.weight, gain=1.0)
-
-
-def numpy_state(policy: RecurrentPolicy) -> dict[str, np.ndarray]:
-    """``policy``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
-    return {k: v.detach().float().cpu().numpy().copy() for k, v in policy.state_dict().items()}
-
-
-def policy_net(policy: RecurrentPolicy, config: PolicyConfig) -> PolicyNet:
-    """The deployed (numba) form of ``policy``'s weights (rounded to float32, as saved)."""
-    return PolicyNet.from_state(numpy_state(policy), config)
 
 
 @dataclass(frozen=True)
@@ -302,7 +271,7 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
                     best = ((settled, neg_final), copy.deepcopy(model.actor.state_dict()), it + 1)
                 message += f", train settled {settled:.3f}, median final error {-neg_final:.1f} deg"
             request.on_progress((it + 1) / budget.rollouts, message)
-        policy = RecurrentPolicy(config)
+        policy = RecurrentPolicy(config, N_INPUTS, ACTIONS)
         policy.load_state_dict(best[1])
         net = policy_net(policy.eval(), config)
         mismatch = check_export(policy, net, inputs[:, :8].astype(np.float64))

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +46,8 @@ from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.v2 import public_context
 from scftc_cli.sim.v2.faults import sample_episodes_batch
 from scftc_cli.spec import V2
-from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
+from scftc_cli.training import TrainReport, TrainRequest, numpy_state, train_settled_rates
+from scftc_cli.training.rma import RMABudget
 
 CLASSES = {
     "rma_student": ("sign", "gain", "loss"),
@@ -118,33 +119,9 @@ def split_segments(restart: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray
     return (inside, *out)
 
 
-def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
-    """``module``'s state dict as float32 numpy arrays (what the ``.npz`` file stores)."""
-    return {k: v.detach().float().cpu().numpy().copy() for k, v in module.state_dict().items()}
-
-
 def student_net(model: WheelStudent, config: StudentConfig) -> StudentNet:
     """The deployed (numba) form of ``model``'s current weights."""
     return StudentNet.from_state(numpy_state(model), config.bias_invariant)
-
-
-@dataclass(frozen=True)
-class RMABudget:
-    """How much work one training run does."""
-
-    iterations: int
-    episodes: int  # fresh episodes flown per iteration
-    grad_steps: int  # gradient steps per iteration
-    minibatch: int  # (episode, wheel) sequences per gradient step
-    # DAgger aggregation: a ring of segments as large as 2 x this many iterations' wheel sequences
-    # (a restart cuts a sequence into segments)
-    buffer_iterations: int
-    teacher_fraction: float  # teacher mixing decays from 1 to 0 over this fraction of the run
-    lr: float
-    eval_every: int
-    eval_faults: int  # pinned train cells used to pick the checkpoint (x eval_seeds)
-    eval_seeds: int
-    hidden: int = 32
 
 
 BUDGETS: dict[str, RMABudget] = {

@@ -186,10 +186,10 @@ def test_student_kernel_matches_torch_on_recorded_rollouts(name: str) -> None:
 
 def test_policy_kernel_matches_torch_on_recorded_rollouts() -> None:
     torch = pytest.importorskip("torch")
-    from scftc_cli.training.v2_ppo import RecurrentPolicy
+    from scftc_cli.training.v2_ppo import ACTIONS, N_INPUTS, RecurrentPolicy
 
     arrays, doc = recurrent.load_weights(WEIGHTS_DIR / "v2" / "e2e_ppo.npz")
-    model = RecurrentPolicy(PolicyConfig.from_dict(doc))
+    model = RecurrentPolicy(PolicyConfig.from_dict(doc), N_INPUTS, ACTIONS)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     model = model.double().eval()
     net = load_policy()
