@@ -22,7 +22,7 @@ from matplotlib.patches import Patch
 from scftc_cli.records import EvalResult, GateStat
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.study.run import Detection, Study, Trajectory, has_onset, sensor_bias_deg
+from scftc_cli.study.run import Detection, Study, Trajectory, actuator_outcomes, has_onset, sensor_bias_deg
 
 DPI = 150
 PAD_INCHES = 0.1  # around the tight bounding box, as savefig's default
@@ -402,15 +402,7 @@ def sensor_faults(
 
 def onset_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """controller -> ``(onset_s (n,), settled (n,) bool)`` over its held-out actuator cells."""
-    out = {}
-    for r in study.battery.results:
-        onset, settled = [], []
-        for run in study.runs[r.controller]:
-            if run.cell.sensor is None:
-                onset.append(run.drawn().fault.onset_step * study.spec.dt_s)  # type: ignore[attr-defined]
-                settled.append(run.outcomes.settled)
-        out[r.controller] = (np.concatenate(onset), np.concatenate(settled))
-    return out
+    return actuator_outcomes(study, lambda fault: fault.onset_step * study.spec.dt_s)
 
 
 def settled_vs_onset(

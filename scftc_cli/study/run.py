@@ -11,8 +11,9 @@ alarms) on the battery's own held-out actuator episodes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel
@@ -191,6 +192,22 @@ class Study:
     trajectories: list[Trajectory]
     runs: dict[str, list[CellRun]]  # per controller, its battery and sensor cells (episode outcomes)
     detection: tuple[Detection, ...] = ()  # fdir's detector per held-out actuator class, if measured
+
+
+def actuator_outcomes(
+    study: Study, value: Callable[[Any], np.ndarray]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """controller -> ``(value (n,), settled (n,) bool)`` over its held-out actuator cells, with
+    ``value(fault)`` read off each cell's drawn episodes' fault (e.g. the onset or the hub inertia)."""
+    out = {}
+    for r in study.battery.results:
+        values, settled = [], []
+        for run in study.runs[r.controller]:
+            if run.cell.sensor is None:
+                values.append(np.asarray(value(run.drawn().fault)))  # type: ignore[attr-defined]
+                settled.append(run.outcomes.settled)
+        out[r.controller] = (np.concatenate(values), np.concatenate(settled))
+    return out
 
 
 def has_onset(spec: BenchmarkSpec) -> bool:

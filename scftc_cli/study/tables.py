@@ -7,14 +7,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 from pydantic import BaseModel
 
 from scftc_cli.records import CellResult, EvalResult
 from scftc_cli.render import markdown_table, pct
 from scftc_cli.scoring import gate_stat
 from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
-from scftc_cli.study.run import Detection, Study
+from scftc_cli.study.run import Detection, Study, actuator_outcomes
 
 
 def _label(result: EvalResult) -> str:
@@ -185,25 +184,12 @@ def hub_parts(spec: BenchmarkSpec) -> tuple[tuple[float, float], ...]:
     return tuple((p.lo, p.hi) for p in parts) if len(parts) > 1 else ()
 
 
-def hub_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """controller -> ``(inertia_scale (n,), settled (n,) bool)`` over its held-out actuator cells."""
-    out = {}
-    for r in study.battery.results:
-        scale, settled = [], []
-        for run in study.runs[r.controller]:
-            if run.cell.sensor is None:
-                scale.append(np.asarray(run.drawn().fault.inertia_scale))  # type: ignore[attr-defined]
-                settled.append(run.outcomes.settled)
-        out[r.controller] = (np.concatenate(scale), np.concatenate(settled))
-    return out
-
-
 def hub_markdown(study: Study) -> str:
     """Settled rate [Wilson 95 %] of every controller on each part of the held-out hub-inertia
     range, pooled over the actuator classes: the split holds hubs lighter and heavier than any
     trained on, and a law tuned for one inertia may hold on one side and not the other."""
     parts = hub_parts(study.spec)
-    outcomes = hub_outcomes(study)
+    outcomes = actuator_outcomes(study, lambda fault: fault.inertia_scale)
     rows = []
     for r in study.battery.results:
         scale, settled = outcomes[r.controller]
