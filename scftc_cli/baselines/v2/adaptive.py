@@ -35,14 +35,12 @@ from scftc_cli.baselines.params import load_v2_params
 from scftc_cli.baselines.v2.estimators import (
     CENSORED_WEIGHT,
     ChangeDetector,
+    EstimatingPort,
     WheelSample,
-    WheelTorqueMeter,
-    estimated_command,
     informative,
-    null_dither,
 )
-from scftc_cli.baselines.v2.law import KD_S, KP_S2, AttitudeFuser, split_observation, torque_demand, wheels_of
-from scftc_cli.protocol import Context, Controller
+from scftc_cli.baselines.v2.law import KD_S, KP_S2
+from scftc_cli.protocol import Context
 
 NAME = "classical_adaptive"
 
@@ -82,7 +80,7 @@ class AdaptiveParams:
     kd_s: float = KD_S
 
 
-class ClassicalAdaptive(Controller):
+class ClassicalAdaptive(EstimatingPort):
     """Per-wheel sign vote + normalized-gradient magnitude/offset/friction law feeding the law."""
 
     params_type = AdaptiveParams
@@ -92,10 +90,7 @@ class ClassicalAdaptive(Controller):
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params
-        self.context, self.wheels = context, wheels_of(context)
-        m = len(self.wheels.spin_axes)
-        self.fuser = AttitudeFuser(n)
-        self.meter = WheelTorqueMeter(context, self.wheels)
+        m = self._start(n, context)
         self.sign = np.ones((n, m))
         self.count = np.zeros((n, m))
         self.m_hat = np.full((n, m), p.m0)
@@ -114,21 +109,6 @@ class ClassicalAdaptive(Controller):
     def estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each."""
         return self.sign * self.m_hat, self.b_hat, self.kappa_hat
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        p = self.params
-        heads, valid, gyro, tach = split_observation(obs)
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        sample = self.meter.read(gyro, tach)
-        if sample is not None:
-            self._adapt(sample)
-        g_hat, b_hat, kappa_hat = self.estimates
-        demand = torque_demand(sigma, gyro, tach, self.context, p.kp_s2, p.kd_s)
-        command = estimated_command(demand, g_hat, b_hat, kappa_hat, tach, self.wheels)
-        command = null_dither(command, self.since, p.dither_amp, p.dither_steps, g_hat)
-        self.meter.hold(command)
-        self.since += 1
-        return command
 
     def _adapt(self, sample: WheelSample) -> None:
         p = self.params

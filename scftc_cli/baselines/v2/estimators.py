@@ -1,6 +1,6 @@
 """The pieces ``scftc-v2``'s estimating controllers share: what each wheel really did over the last
 step, when a sample can be trusted, a test that the fault changed, a dither that leaves the hub
-alone, and the law fed the estimates.
+alone, the law fed the estimates, and the step every estimating port takes (``EstimatingPort``).
 
 **The wheel-torque measurement.** The tachometers and the gyro give each wheel's realized torque
 over a step (docs/benchmark-v2.md, section 5): integrating ``Js (Omega_dot_i + g_i . w_dot) =
@@ -29,12 +29,21 @@ All arrays are batch-first: ``(n, m)`` per wheel, ``m = 4``; torques in units of
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
 
-from scftc_cli.baselines.v2.law import allocate, allocation, friction_nm
-from scftc_cli.protocol import Context, WheelKnowledge
+from scftc_cli.baselines.v2.law import (
+    AttitudeFuser,
+    allocate,
+    allocation,
+    friction_nm,
+    split_observation,
+    torque_demand,
+    wheels_of,
+)
+from scftc_cli.protocol import Context, Controller, WheelKnowledge
 
 CLIP_LEVEL = 0.99
 """A sample whose measured motor torque ``|g a + b|`` reaches this (11 noise sigmas below the clip
@@ -341,3 +350,55 @@ def _law_command(  # pragma: no cover - compiled
             room = 1.0 - abs(v)
             out[e, i] = min(max(min(max(out[e, i], -room), room) + level * v, -1.0), 1.0)
     return out
+
+
+class EstimatingPort(Controller):
+    """The step ``classical_adaptive``, ``icl_adaptive`` and ``rls_dob`` share: fuse the heads,
+    measure each wheel's torque over the last step and fold it into the estimate (``_adapt``),
+    then the analytic law allocated through the estimates (``_command``), the command held for
+    the next measurement. A subclass keeps ``params`` (with ``kp_s2``, ``kd_s``, ``dither_amp``,
+    ``dither_steps``), ``since`` ``(n,)`` (steps since the estimator (re)opened) and the
+    ``estimates`` ``(g_hat, b_hat, kappa_hat)``; ``reset`` starts with ``_start``."""
+
+    params: Any
+    since: np.ndarray
+    dither_hold_steps = 1
+    """Steps each level of the null-space dither is held (``null_dither``)."""
+
+    def _start(self, n: int, context: Context) -> int:
+        """The shared part of ``reset``: the context, the fuser and the torque meter; returns the
+        number of wheels ``m``."""
+        self.context, self.wheels = context, wheels_of(context)
+        self.fuser = AttitudeFuser(n)
+        self.meter = WheelTorqueMeter(context, self.wheels)
+        return len(self.wheels.spin_axes)
+
+    @property
+    def estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each, as the law uses them."""
+        raise NotImplementedError
+
+    def _adapt(self, sample: WheelSample) -> None:
+        """Fold in one step's wheel-torque sample."""
+        raise NotImplementedError
+
+    def _command(self, demand_nm: np.ndarray, tach: np.ndarray) -> np.ndarray:
+        """``(n, m)`` commands for the hub torque ``demand_nm`` ``(n, 3)``: the law through the
+        estimates, plus the null-space dither."""
+        p = self.params
+        g_hat, b_hat, kappa_hat = self.estimates
+        command = estimated_command(demand_nm, g_hat, b_hat, kappa_hat, tach, self.wheels)
+        return null_dither(command, self.since, p.dither_amp, p.dither_steps, g_hat, self.dither_hold_steps)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        p = self.params
+        heads, valid, gyro, tach = split_observation(obs)
+        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
+        sample = self.meter.read(gyro, tach)
+        if sample is not None:
+            self._adapt(sample)
+        demand = torque_demand(sigma, gyro, tach, self.context, p.kp_s2, p.kd_s)
+        command = self._command(demand, tach)
+        self.meter.hold(command)
+        self.since += 1
+        return command

@@ -44,14 +44,12 @@ from scftc_cli.baselines.params import load_v2_params
 from scftc_cli.baselines.v2.adaptive import predicted_torque, sample_weight
 from scftc_cli.baselines.v2.estimators import (
     ChangeDetector,
+    EstimatingPort,
     WheelSample,
-    WheelTorqueMeter,
-    estimated_command,
     informative,
-    null_dither,
 )
-from scftc_cli.baselines.v2.law import KD_S, KP_S2, AttitudeFuser, split_observation, torque_demand, wheels_of
-from scftc_cli.protocol import Context, Controller
+from scftc_cli.baselines.v2.law import KD_S, KP_S2
+from scftc_cli.protocol import Context
 
 NAME = "icl_adaptive"
 ARM_LAMBDA = 0.05
@@ -207,7 +205,7 @@ def stack_step(
     return direction, arm
 
 
-class ICLAdaptive(Controller):
+class ICLAdaptive(EstimatingPort):
     """ICL estimate of ``(g, b, kappa)`` per wheel feeding the law; stacks purged on a change."""
 
     params_type = ICLParams
@@ -217,10 +215,7 @@ class ICLAdaptive(Controller):
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params
-        self.context, self.wheels = context, wheels_of(context)
-        m = len(self.wheels.spin_axes)
-        self.fuser = AttitudeFuser(n)
-        self.meter = WheelTorqueMeter(context, self.wheels)
+        m = self._start(n, context)
         self.phi = np.zeros((n, m, 3))
         self.phi[..., 0], self.phi[..., 2] = 1.0, self.wheels.coulomb_nm / self.wheels.u_max_nm
         self.ys = np.zeros((n, m, p.stack_size, 3))
@@ -239,20 +234,10 @@ class ICLAdaptive(Controller):
         """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each."""
         return self.phi[..., 0], self.phi[..., 1], self.phi[..., 2]
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        p = self.params
-        heads, valid, gyro, tach = split_observation(obs)
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        sample = self.meter.read(gyro, tach)
-        if sample is not None:
-            self._adapt(sample)
-        g_hat, b_hat, kappa_hat = self.estimates
-        demand = torque_demand(sigma, gyro, tach, self.context, p.kp_s2, p.kd_s)
-        command = estimated_command(demand, g_hat, b_hat, kappa_hat, tach, self.wheels)
-        command = null_dither(command, self.since, p.dither_amp, p.dither_steps, g_hat, p.window)
-        self.meter.hold(command)
-        self.since += 1
-        return command
+    @property
+    def dither_hold_steps(self) -> int:  # type: ignore[override]
+        """Each dither level is held one window (the integral form averages over it)."""
+        return self.params.window
 
     def _adapt(self, sample: WheelSample) -> None:
         p = self.params

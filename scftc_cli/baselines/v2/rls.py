@@ -39,12 +39,12 @@ from scftc_cli.baselines.v2.estimators import (
     CENSORED_WEIGHT,
     CLIP_LEVEL,
     SPEED_MARGIN_RAD_S,
+    EstimatingPort,
     WheelSample,
-    WheelTorqueMeter,
     law_command,
 )
-from scftc_cli.baselines.v2.law import KD_S, KP_S2, AttitudeFuser, split_observation, torque_demand, wheels_of
-from scftc_cli.protocol import Context, Controller
+from scftc_cli.baselines.v2.law import KD_S, KP_S2
+from scftc_cli.protocol import Context
 
 NAME = "rls_dob"
 
@@ -170,7 +170,7 @@ def _rls_step(  # pragma: no cover - compiled
                 latched[e, i] = True
 
 
-class RLSDob(Controller):
+class RLSDob(EstimatingPort):
     """Estimate-then-control: per-wheel RLS of ``(g, b, kappa)``, latched, then the observer; a
     residual test re-opens the latch."""
 
@@ -181,10 +181,7 @@ class RLSDob(Controller):
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params
-        self.context, self.wheels = context, wheels_of(context)
-        m = len(self.wheels.spin_axes)
-        self.fuser = AttitudeFuser(n)
-        self.meter = WheelTorqueMeter(context, self.wheels)
+        m = self._start(n, context)
         self.p0 = np.diag([p.p0_g, p.p0_b, p.p0_kappa])
         self.phi = np.zeros((n, m, 3))  # (g, b, kappa) of every wheel
         self.phi[..., 0], self.phi[..., 2] = 1.0, self.wheels.coulomb_nm / self.wheels.u_max_nm
@@ -219,21 +216,17 @@ class RLSDob(Controller):
         """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each, as the law uses them."""
         return self.phi[..., 0], self.b_obs, self.phi[..., 2]
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def _command(self, demand_nm: np.ndarray, tach: np.ndarray) -> np.ndarray:
+        """The law and the dither in one fused pass (``law_command``)."""
         p = self.params
-        heads, valid, gyro, tach = split_observation(obs)
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        sample = self.meter.read(gyro, tach)
-        if sample is not None:
-            self._adapt(sample)
         g_hat, b_hat, kappa_hat = self.estimates
-        demand = torque_demand(sigma, gyro, tach, self.context, p.kp_s2, p.kd_s)
-        command = law_command(
-            demand, g_hat, b_hat, kappa_hat, tach, self.wheels, self.since, p.dither_amp, p.dither_steps
+        return law_command(
+            demand_nm, g_hat, b_hat, kappa_hat, tach, self.wheels, self.since, p.dither_amp, p.dither_steps
         )
-        self.meter.hold(command)
-        self.since += 1
-        self.k += 1
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        command = super().act(obs)
+        self.k += 1  # the latch's ring-buffer position
         return command
 
     def _adapt(self, sample: WheelSample) -> None:
