@@ -19,8 +19,9 @@ import resource
 import time
 from pathlib import Path
 
-from scftc_cli.board.ops import Scoring, verify
+from scftc_cli.board.flights import Scoring
 from scftc_cli.board.store import default_board_path
+from scftc_cli.board.verify import verify
 from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.distributed.runner import cluster
 from scftc_cli.evaluate import Cell, evaluate_cells

@@ -153,7 +153,8 @@ def _details(e: Entry, columns: int) -> str:
     if e.license:
         meta.append(f"license {esc(e.license)}")
     meta.append(f"scored {esc(e.created_utc)} with scftc {esc(e.package_version)}")
-    meta.append(f"sealed salt <code>{esc(e.sealed_salt[:16])}&hellip;</code>")
+    if e.sealed_salt is not None:
+        meta.append(f"round {e.round}, sealed salt <code>{esc(e.sealed_salt[:16])}&hellip;</code>")
     return (
         f'<tr class="details" hidden><td colspan="{columns}"><p>{" &middot; ".join(meta)}</p>'
         "<table><thead><tr><th>cell</th><th>settled, sealed</th><th>settled, public</th>"

@@ -1,11 +1,13 @@
-"""What a leaderboard holds: full-size entries scored on a public and a sealed draw, validated on
-every read.
+"""What a leaderboard holds: its rounds, and full-size entries scored on the public draw and, once
+their round is sealed, on a sealed draw; validated on every read.
 
-Validation covers the schema *and* the arithmetic: each rate is ``k/n``, each interval is the
-Wilson interval of ``k`` and ``n``, every entry holds exactly its benchmark's cells at the full
-cell size (``n_faults x n_seeds`` of the spec), and a sealed draw carries the salt that keys it.
-A hand-edited number is caught before anything trusts it; ``scftc leaderboard verify`` then
-re-flies every entry to catch a consistent forgery.
+Validation covers the schema, the arithmetic and the shape of the round chain: each rate is
+``k/n``, each interval is the Wilson interval of ``k`` and ``n``, every entry holds exactly its
+benchmark's cells at the full cell size (``n_faults x n_seeds`` of the spec), a pending entry has
+no sealed draw, a sealed one has its salt, every entry belongs to a round that was opened before
+it was added, and a revealed secret hashes to its round's commitment. A hand-edited number is
+caught before anything trusts it; ``scftc leaderboard verify`` then checks that every salt derives
+from its round's secret and re-flies every entry to catch a consistent forgery (``board/rounds.py``).
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ import json
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from scftc_cli.board.rounds import HEX64, commitment
 from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, GateStat
 from scftc_cli.scoring import wilson_interval
@@ -33,10 +36,12 @@ from scftc_cli.submission.manifest import (
 )
 from scftc_cli.submission.wire import terminal_safe
 
-BOARD_FORMAT: Literal["scftc-leaderboard/2"] = "scftc-leaderboard/2"
+BOARD_FORMAT: Literal["scftc-leaderboard/3"] = "scftc-leaderboard/3"
 BACKEND = "numpy"
-SALT_PATTERN = r"^[0-9a-f]{64}$"
+SALT_PATTERN = HEX64
 TIE_ALPHA = 0.05
+MAX_SOURCE_PATH_CHARS = 200
+MAX_REASON_CHARS = 500
 
 
 def ranking_rule(ranked_classes: tuple[str, ...], episodes_per_cell: int) -> str:
@@ -53,10 +58,21 @@ def ranking_rule(ranked_classes: tuple[str, ...], episodes_per_cell: int) -> str
     )
 
 
+EntryStatus = Literal["pending", "sealed", "failed"]
+
+
 class Entry(BaseModel):
     """One controller on the board: its per-cell results on the public draw (pinned seeds, the
-    same episodes for every entry) and on its sealed draw (episodes keyed by ``sealed_salt``, a
-    random salt drawn by the scoring process and written only after the run)."""
+    same episodes for every entry) and, once its round is sealed, on its sealed draw (episodes
+    keyed by ``sealed_salt``, derived from the round's secret and the entry's identity).
+
+    Attributes:
+        status: ``pending`` (submitted in an open round: public draw only, unranked), ``sealed``
+            (flown on its sealed draw at the round's seal: ranked), ``failed`` (the seal could not
+            score it: ``failure`` says why; kept on the record, never ranked).
+        round: the round it belongs to; ``added_board_version`` the board version that added it
+            to that round (after the round's commitment, ``Round.opened_board_version``).
+    """
 
     model_config = ConfigDict(extra="forbid")
 
@@ -69,8 +85,12 @@ class Entry(BaseModel):
     license: str | None = Field(default=None, max_length=MAX_LICENSE_CHARS)
     paper_url: str | None = Field(default=None, max_length=MAX_URL_CHARS)
     code_url: str | None = Field(default=None, max_length=MAX_URL_CHARS)
-    source: str | None = Field(default=None, description="Submitted file, relative to the repo root.")
-    sha256: str | None = Field(default=None, pattern=r"^[0-9a-f]{64}$", description="Of the submitted file.")
+    source: str | None = Field(
+        default=None,
+        max_length=MAX_SOURCE_PATH_CHARS,
+        description="Submitted file: a relative path inside the repository (no '..').",
+    )
+    sha256: str | None = Field(default=None, pattern=HEX64, description="Of the submitted file.")
     artifacts: dict[str, str] = Field(
         default_factory=dict, description="Built-ins: sha256 of each parameter or weight file, by path."
     )
@@ -80,14 +100,29 @@ class Entry(BaseModel):
     created_utc: str = Field(pattern=r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$")
     n_faults: int = Field(ge=1)
     n_seeds: int = Field(ge=1)
+    status: EntryStatus
+    round: int = Field(ge=1)
+    added_board_version: int = Field(ge=1)
     public: list[CellResult]
-    sealed: list[CellResult]
-    sealed_salt: str = Field(pattern=SALT_PATTERN, description="Hex of the salt that keys the sealed draw.")
+    sealed: list[CellResult] = Field(default_factory=list)
+    sealed_salt: str | None = Field(
+        default=None, pattern=SALT_PATTERN, description="Hex of the salt that keys the sealed draw."
+    )
+    failure: str | None = Field(default=None, max_length=MAX_REASON_CHARS)
+
+    @field_validator("source")
+    @classmethod
+    def _inside_the_repository(cls, source: str | None) -> str | None:
+        if source is not None and (
+            not source or source.startswith("/") or "\\" in source or ".." in source.split("/")
+        ):
+            raise ValueError("source must be a relative path inside the repository, without '..'")
+        return source
 
     @model_validator(mode="after")
     def _consistent(self) -> Entry:
         texts = [self.name, self.summary, self.version or "", self.license or "", *self.authors]
-        texts += [self.paper_url or "", self.code_url or "", self.source or ""]
+        texts += [self.paper_url or "", self.code_url or "", self.source or "", self.failure or ""]
         if any(terminal_safe(t) != t for t in texts) or any(len(a) > MAX_AUTHOR_CHARS for a in self.authors):
             raise ValueError(
                 f"entry strings must be free of control characters and escape sequences, authors at most "
@@ -101,14 +136,35 @@ class Entry(BaseModel):
                 "only full-size runs are ranked: n_faults x n_seeds must be "
                 f"{spec.n_faults} x {spec.n_seeds}, got {self.n_faults} x {self.n_seeds}"
             )
+        shape = {
+            "pending": (False, False, False),
+            "sealed": (True, True, False),
+            "failed": (False, True, True),
+        }[self.status]
+        if (bool(self.sealed), self.sealed_salt is not None, self.failure is not None) != shape:
+            raise ValueError(
+                f"a {self.status} entry has {'sealed cells, ' if shape[0] else 'no sealed cells, '}"
+                f"{'a' if shape[1] else 'no'} sealed_salt and {'a' if shape[2] else 'no'} failure reason"
+            )
         cells = board_cells(spec)
         expected = [(c.split, c.fault_class, c.sensor) for c in cells]
-        for draw, results in (("public", self.public), ("sealed", self.sealed)):
+        draws = (
+            (("public", self.public), ("sealed", self.sealed)) if self.sealed else (("public", self.public),)
+        )
+        for draw, results in draws:
             if [c.key for c in results] != expected:
                 raise ValueError(f"{draw} cells must be exactly {[c.label for c in cells]}")
             for c in results:
                 check_cell(c, self.n_faults * self.n_seeds, f"{draw} {c.label}")
         return self
+
+    @property
+    def identity(self) -> str:
+        """What the sealed draw is bound to besides the name: the submitted file's SHA-256, or a
+        built-in's artifact hashes (``rounds.builtin_identity``)."""
+        from scftc_cli.board.rounds import builtin_identity
+
+        return self.sha256 if self.sha256 is not None else builtin_identity(self.artifacts)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -131,16 +187,72 @@ def check_cell(cell: CellResult, n: int, where: str) -> None:
             raise ValueError(f"{where} {gate}: [{stat.ci_low}, {stat.ci_high}] is not the Wilson interval")
 
 
+EventAction = Literal[
+    "added",
+    "rebuilt",
+    "removed",
+    "migrated",
+    "sealed",
+    "failed",
+    "moved",
+    "round-opened",
+    "round-closed",
+    "round-sealed",
+    "round-abandoned",
+]
+
+
 class BoardEvent(BaseModel):
-    """One change to a board, kept in its history (additions, rebuilds and removals with reasons)."""
+    """One change to a board, kept in its history: entries added, sealed, failed, moved or
+    removed (with reasons), rounds opened, closed, sealed or abandoned (``round`` set)."""
 
     model_config = ConfigDict(extra="forbid")
 
     board_version: int = Field(ge=1)
     utc: str
-    action: Literal["added", "rebuilt", "removed"]
+    action: EventAction
     name: str
-    reason: str = Field(default="", max_length=500)
+    round: int | None = Field(default=None, ge=1)
+    reason: str = Field(default="", max_length=MAX_REASON_CHARS)
+
+
+RoundStatus = Literal["open", "closing", "sealed", "abandoned"]
+
+
+class Round(BaseModel):
+    """One commit–reveal round (``board/rounds.py``).
+
+    Attributes:
+        commitment: ``sha256(secret)``, published when the round opens.
+        opened_board_version: the board version whose write first held the commitment; every
+            entry of the round was added later.
+        status: ``open`` (takes submissions), ``closing`` (being sealed: the next round takes
+            submissions), ``sealed`` (secret revealed, entries scored), ``abandoned`` (its secret
+            was lost or must not be used; never revealed; its pending entries moved on).
+        secret: the revealed secret (hex), once sealed.
+        closed_board_version: the write that sealed or abandoned it.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    number: int = Field(ge=1)
+    commitment: str = Field(pattern=HEX64)
+    opened_board_version: int = Field(ge=1)
+    opened_utc: str
+    status: RoundStatus
+    secret: str | None = Field(default=None, pattern=HEX64)
+    closed_board_version: int | None = Field(default=None, ge=1)
+    reason: str = Field(default="", max_length=MAX_REASON_CHARS)
+
+    @model_validator(mode="after")
+    def _revealed_when_sealed(self) -> Round:
+        if (self.status == "sealed") != (self.secret is not None):
+            raise ValueError(f"round {self.number}: a secret is revealed exactly when the round is sealed")
+        if self.secret is not None and commitment(bytes.fromhex(self.secret)) != self.commitment:
+            raise ValueError(f"round {self.number}: the revealed secret does not hash to its commitment")
+        if (self.status in ("sealed", "abandoned")) != (self.closed_board_version is not None):
+            raise ValueError(f"round {self.number}: closed_board_version is set exactly when it is closed")
+        return self
 
 
 class Leaderboard(BaseModel):
@@ -149,29 +261,57 @@ class Leaderboard(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    format: Literal["scftc-leaderboard/2"] = BOARD_FORMAT
+    format: Literal["scftc-leaderboard/3"] = BOARD_FORMAT
     benchmark_version: str = DEFAULT_BENCHMARK
     version: int = Field(default=0, ge=0)
     updated_utc: str | None = None
     ranking: str = ""
+    rounds: list[Round] = Field(default_factory=list)
     entries: list[Entry] = Field(default_factory=list)
     history: list[BoardEvent] = Field(default_factory=list)
 
     @model_validator(mode="after")
-    def _unique(self) -> Leaderboard:
-        names = [e.name for e in self.entries]
+    def _consistent(self) -> Leaderboard:
+        names = [e.name for e in self.entries if e.status != "failed"]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise ValueError(f"duplicate entry names: {', '.join(dupes)}")
+        if [r.number for r in self.rounds] != list(range(1, len(self.rounds) + 1)):
+            raise ValueError("rounds must be numbered 1, 2, 3, ... in order")
+        for status in ("open", "closing"):
+            if sum(r.status == status for r in self.rounds) > 1:
+                raise ValueError(f"at most one round can be {status}")
         for e in self.entries:
             if e.benchmark_version != self.benchmark_version:
                 raise ValueError(
                     f"entry {e.name} is for {e.benchmark_version}, the board for {self.benchmark_version}"
                 )
+            if not 1 <= e.round <= len(self.rounds):
+                raise ValueError(f"entry {e.name} belongs to round {e.round}, which the board does not hold")
+            r = self.rounds[e.round - 1]
+            if e.added_board_version <= r.opened_board_version:
+                raise ValueError(
+                    f"entry {e.name} was added (board version {e.added_board_version}) before its round "
+                    f"{r.number} was committed (board version {r.opened_board_version})"
+                )
+            # a pending entry of an abandoned round waits for the write that moves it on
+            allowed = ("open", "closing", "abandoned") if e.status == "pending" else ("sealed",)
+            if r.status not in allowed:
+                raise ValueError(f"entry {e.name} is {e.status} in round {r.number}, which is {r.status}")
         return self
 
     def entry(self, name: str) -> Entry | None:
-        return next((e for e in self.entries if e.name == name), None)
+        """The live (pending or sealed) entry called ``name``."""
+        return next((e for e in self.entries if e.name == name and e.status != "failed"), None)
+
+    @property
+    def open_round(self) -> Round | None:
+        """The round taking submissions now (``None``: a maintainer must open one)."""
+        return next((r for r in self.rounds if r.status == "open"), None)
+
+    @property
+    def closing_round(self) -> Round | None:
+        return next((r for r in self.rounds if r.status == "closing"), None)
 
 
 def empty_board(benchmark: str) -> Leaderboard:

@@ -1,224 +1,145 @@
-"""The operations behind ``scftc submit`` and ``scftc leaderboard rebuild|verify|remove``.
+"""The operations that change a board: ``scftc submit``, ``scftc leaderboard open|seal|abandon|
+rebuild|remove``.
 
-Built-ins are flown in process (trusted code); a submission is flown in its sandbox
-(``submission/``). Every entry holds the same cells (``evaluate.board_cells``) at the full cell
-size on the public draw and on its own sealed draw (``board/draws.py``).
+The round flow (``board/rounds.py``): a maintainer opens a round (its commitment lands first);
+``submit`` adds *pending* entries to the open round (public draw and checks only); ``seal`` closes
+the round (the next one opens in the same write, so submissions never wait), derives every pending
+entry's salt from the revealed secret, flies each entry's sealed cells once, each submission twice
+in two fresh sandboxes with its commands compared, and writes every outcome, failures included,
+together with the revealed secret. Every write goes through ``store.update_board`` (locked,
+atomic): a crash leaves the previous board whole, and a crashed seal is resumed by running it again
+(the sealed draw is fixed by the secret, so running it again cannot re-roll it).
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import hashlib
-import math
-import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field, replace
+import secrets
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-import numpy as np
 
 from scftc_cli import __version__
-from scftc_cli.baselines.checker import fly_prefix
-from scftc_cli.board.draws import PUBLIC, new_salt, salt_from_hex
-from scftc_cli.board.models import BACKEND, BoardEvent, Entry, Leaderboard
+from scftc_cli.board.draws import PUBLIC
+from scftc_cli.board.flights import (
+    OnEntry,
+    Scoring,
+    artifact_hashes,
+    budget,
+    check_deterministic,
+    find_submission_file,
+    fly_submission,
+    require_same_commands,
+    score_builtin,
+)
+from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
 from scftc_cli.board.ranking import Ranked, Ranking, rank_board
+from scftc_cli.board.rounds import commitment, round_secret, sealed_salt
 from scftc_cli.board.store import default_submissions_dir, read_board, update_board, utc_now
-from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import LeaderboardError, ScftcError, SubmissionRejected, UnknownNameError, UsageError
-from scftc_cli.evaluate import Cell, ControllerFactory, board_cells, evaluate_cells
-from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
+from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult
-from scftc_cli.registry import ControllerSpec, builtin_names, registry
-from scftc_cli.spec import GATES, BenchmarkSpec
+from scftc_cli.registry import builtin_names, registry
 from scftc_cli.submission.isolation import sandbox_unavailable
-from scftc_cli.submission.limits import SandboxLimits
 from scftc_cli.submission.manifest import Submission, load_submission
-from scftc_cli.submission.sandbox import Sandbox, SandboxedController
-
-if TYPE_CHECKING:
-    from scftc_cli.distributed.runner import Runner
-
-DOOR_CLASSES = ("gain_bias", "sign")  # the determinism check's train cells (a short prefix of each)
-DOOR_STEPS = 20
+from scftc_cli.submission.wire import one_line
 
 
-@dataclass(frozen=True)
-class Scoring:
-    """How entries are scored: the benchmark, the submission sandbox's limits, progress.
-
-    ``n_faults``/``n_seeds`` other than the spec's exist for dry runs only: the board refuses
-    entries that are not full size.
-    """
-
-    spec: BenchmarkSpec
-    n_faults: int | None = None
-    n_seeds: int | None = None
-    limits: SandboxLimits = field(default_factory=SandboxLimits)
-    progress: Progress = NO_PROGRESS
-    backend: str = BACKEND
-    runner: Runner | None = None  # a Dask cluster to fly the cells on
-
-    @property
-    def faults(self) -> int:
-        return self.spec.n_faults if self.n_faults is None else self.n_faults
-
-    @property
-    def seeds(self) -> int:
-        return self.spec.n_seeds if self.n_seeds is None else self.n_seeds
-
-    @property
-    def full_size(self) -> bool:
-        return (self.faults, self.seeds) == (self.spec.n_faults, self.spec.n_seeds)
-
-
-Draws = dict[str, bytes]  # draw name -> salt (b"" for the public draw)
-
-
-def steps_per_entry(scoring: Scoring, draws: int = 2) -> int:
-    """Simulated steps of scoring one entry on ``draws`` draws (a progress bar's total)."""
-    return len(board_cells(scoring.spec)) * draws * scoring.spec.steps
-
-
-def _score(
-    make: ControllerFactory, ref: ControllerRef, scoring: Scoring, draws: Draws, label: str
-) -> dict[str, list[CellResult]]:
-    cells = board_cells(scoring.spec)
-    return {
-        draw: [
-            run.result
-            for run in evaluate_cells(
-                make,
-                scoring.spec,
-                cells,
-                n_faults=scoring.faults,
-                n_seeds=scoring.seeds,
-                backend=scoring.backend,
-                salt=salt,
-                progress=scoring.progress,
-                label=label,
-                runner=scoring.runner,
-                ref=ref,
-            )
-        ]
-        for draw, salt in draws.items()
-    }
-
-
-def score_builtin(entry: ControllerSpec, scoring: Scoring, draws: Draws) -> dict[str, list[CellResult]]:
-    """Per-draw cell results of a built-in controller (in process: trusted code)."""
-    return _score(
-        lambda _cell: entry.make(), BuiltinRef(entry.name, scoring.spec.version), scoring, draws, entry.name
+def _event(
+    board: Leaderboard, action: str, name: str, reason: str = "", round: int | None = None
+) -> BoardEvent:
+    return BoardEvent.model_validate(
+        {
+            "board_version": board.version + 1,
+            "utc": utc_now(),
+            "action": action,
+            "name": name,
+            "round": round,
+            "reason": reason,
+        }
     )
 
 
-def _sandbox(sub: Submission, scoring: Scoring, deadline: float | None) -> Sandbox:
-    return Sandbox(
-        sub.source, sub.path.name, sub.manifest.entry, sub.imports, scoring.limits, deadline=deadline
+def _open_next(board: Leaderboard, key: bytes) -> Round:
+    """Append the next round, committed to its secret under ``key``, to ``board`` (being written)."""
+    number = len(board.rounds) + 1
+    secret = round_secret(key, board.benchmark_version, number)
+    opened = Round(
+        number=number,
+        commitment=commitment(secret),
+        opened_board_version=board.version + 1,
+        opened_utc=utc_now(),
+        status="open",
+    )
+    board.rounds.append(opened)
+    board.history.append(
+        _event(board, "round-opened", f"round {number}", f"commitment {opened.commitment}", number)
+    )
+    return opened
+
+
+def _no_open_round(board_path: Path, benchmark: str) -> LeaderboardError:
+    return LeaderboardError(
+        f"no round is open on {board_path}; a maintainer opens one with `scftc leaderboard open "
+        f"--benchmark {benchmark} --leaderboard {board_path} --key-file KEY`"
     )
 
 
-def _budget(scoring: Scoring) -> float:
-    """One deadline for everything asked of one submission (determinism check and every cell)."""
-    return time.monotonic() + scoring.limits.total_wall_s
+def open_round(board_path: Path, benchmark: str, key: bytes) -> Leaderboard:
+    """Open the board's next round (creating the board if there is none) under ``key``."""
 
-
-def score_submission(
-    sub: Submission, scoring: Scoring, draws: Draws, deadline: float | None = None
-) -> dict[str, list[CellResult]]:
-    """Per-draw cell results of a submission flown in one sandboxed process (on a cluster: one per
-    chunk, on the workers). The process is told the cell it flies, never the draw, and never
-    receives a salt."""
-    ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
-    if scoring.runner is not None:
-        return _score(lambda _cell: _unused(), ref, scoring, draws, sub.manifest.name)
-    with _sandbox(sub, scoring, deadline if deadline is not None else _budget(scoring)) as box:
-        proxy = SandboxedController(box)
-
-        def controller_for(cell: Cell) -> Controller:
-            proxy.where = f"cell {cell.label}"
-            return proxy
-
-        return _score(controller_for, ref, scoring, draws, sub.manifest.name)
-
-
-def _unused() -> Controller:
-    raise AssertionError("a cluster run builds its controllers on the workers")  # pragma: no cover
-
-
-def check_deterministic(sub: Submission, scoring: Scoring, deadline: float | None = None) -> None:
-    """Fly a short prefix of two train cells twice, each time in a fresh sandbox; reject the
-    submission if any command differs (a non-deterministic entry could never be verified)."""
-    flights = []
-    for _ in range(2):
-        with _sandbox(sub, scoring, deadline) as box:
-            proxy = SandboxedController(box)
-            proxy.where = "the determinism check"
-            flights.append([fly_prefix(proxy, scoring.spec.version, c, DOOR_STEPS) for c in DOOR_CLASSES])
-    for fault_class, first, again in zip(DOOR_CLASSES, *flights, strict=True):
-        if not np.array_equal(first, again):
-            k = int(np.argmax(np.any(first != again, axis=(0, 2))))
-            raise SubmissionRejected(
-                f"{sub.path.name}: not deterministic: two runs on the same observations gave different "
-                f"commands at step {k} of the train {fault_class} check; seed any randomness from the "
-                "observations or a constant, never from time, os.urandom or global state"
+    def change(board: Leaderboard) -> Leaderboard:
+        if board.open_round is not None:
+            raise LeaderboardError(
+                f"round {board.open_round.number} of {board_path} is already open; seal it "
+                "(`scftc leaderboard seal`) or abandon it (`scftc leaderboard abandon`) first"
             )
+        _open_next(board, key)
+        return board
+
+    return update_board(board_path, benchmark, change)
 
 
+# ------------------------------------------------------------------------------------------ submit
 def _entry(
     *,
     name: str,
     kind: str,
     privileged: bool,
     summary: str,
-    results: dict[str, list[CellResult]],
-    salt: bytes,
+    public: list[CellResult],
     scoring: Scoring,
     **extra: object,
-) -> Entry:
-    return Entry.model_validate(
-        {
-            "name": name,
-            "kind": kind,
-            "privileged": privileged,
-            "summary": summary,
-            "benchmark_version": scoring.spec.version,
-            "package_version": __version__,
-            "backend": scoring.backend,
-            "created_utc": utc_now(),
-            "n_faults": scoring.faults,
-            "n_seeds": scoring.seeds,
-            "public": results["public"],
-            "sealed": results["sealed"],
-            "sealed_salt": salt.hex(),
-            **extra,
-        }
-    )
-
-
-def artifact_hashes(entry: ControllerSpec) -> dict[str, str]:
-    """sha256 of each file a built-in loads, by package-relative path."""
+) -> dict:
+    """An entry's fields before it joins a round (``status``, ``round`` and ``added_board_version``
+    are set under the board's lock)."""
     return {
-        rel: hashlib.sha256(path.read_bytes()).hexdigest()
-        for rel, path in zip(entry.artifacts, entry.artifact_paths(), strict=True)
+        "name": name,
+        "kind": kind,
+        "privileged": privileged,
+        "summary": summary,
+        "benchmark_version": scoring.spec.version,
+        "package_version": __version__,
+        "backend": scoring.backend,
+        "created_utc": utc_now(),
+        "n_faults": scoring.faults,
+        "n_seeds": scoring.seeds,
+        "public": public,
+        **extra,
     }
 
 
-def builtin_entry(name: str, scoring: Scoring) -> Entry:
-    """Score a built-in on the public draw and a fresh sealed draw."""
-    info = registry(scoring.spec.version)[name]
-    salt = new_salt()
-    results = score_builtin(info, scoring, {"public": PUBLIC, "sealed": salt})
-    return _entry(
-        name=name,
-        kind="builtin",
-        privileged=info.privileged,
-        summary=info.summary,
-        results=results,
-        salt=salt,
-        scoring=scoring,
-        artifacts=artifact_hashes(info),
+def _join_open_round(board: Leaderboard, fields: dict, board_path: Path) -> Entry:
+    """``fields`` as a pending entry of the board's open round (the board is being written)."""
+    opened = board.open_round
+    if opened is None:
+        raise _no_open_round(board_path, board.benchmark_version)
+    entry = Entry.model_validate(
+        {**fields, "status": "pending", "round": opened.number, "added_board_version": board.version + 1}
     )
+    board.entries.append(entry)
+    board.history.append(_event(board, "added", entry.name, round=opened.number))
+    return entry
 
 
 def _relative_source(path: Path, root: Path) -> str:
@@ -229,7 +150,7 @@ def _relative_source(path: Path, root: Path) -> str:
 
 
 def taken_names(board: Leaderboard) -> set[str]:
-    return {e.name for e in board.entries} | builtin_names()
+    return {e.name for e in board.entries if e.status != "failed"} | builtin_names()
 
 
 def _check_name_free(sub: Submission, board: Leaderboard, board_path: Path) -> None:
@@ -243,25 +164,23 @@ def _check_name_free(sub: Submission, board: Leaderboard, board_path: Path) -> N
 
 @dataclass(frozen=True)
 class SubmitOutcome:
-    """A scored submission. Landed: its entry, the new board and its ranking there. Dry run
-    (``board`` is ``None``): the public-draw results only, nothing ranked or written."""
+    """A scored submission: its public-draw results; landed, its pending entry and the new board
+    (``entry`` is ``None`` after a dry run: nothing was written)."""
 
     public: list[CellResult]
     entry: Entry | None = None
     board: Leaderboard | None = None
-    ranking: Ranking | None = None
-    ranked: Ranked | None = None
 
 
 def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = False) -> SubmitOutcome:
-    """Validate and fly a submission; unless ``dry_run``, check it is deterministic, score its
-    sealed draw and append it to the board. A rejection writes nothing.
+    """Validate a submission, fly it on the public draw, check it is deterministic, and (unless
+    ``dry_run``) add it to the open round as a pending entry. A rejection writes nothing.
 
-    A dry run flies the public draw only, at any cell size: it is the development check. Landing
-    an entry needs the full cell size and the sandbox.
+    A dry run runs every check a landing run does (the sandbox, the name, the benchmark, the
+    public draw, the whole-cell determinism check) except the size and limits that only landing
+    pins, and writes nothing.
     """
     sub = load_submission(path)
-    deadline = _budget(scoring)
     benchmark = scoring.spec.version
     flies = sub.manifest.benchmark
     if flies != benchmark:
@@ -269,29 +188,38 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
             f"{sub.path.name} flies {flies} (SUBMISSION['benchmark']), not {benchmark}; "
             f"pass --benchmark {flies} or port the controller"
         )
-    if dry_run:
-        results = score_submission(sub, scoring, {"public": PUBLIC}, deadline)
-        return SubmitOutcome(public=results["public"])
-    if not scoring.full_size:
-        raise SubmissionRejected(
-            f"only full-size runs land on a board ({scoring.spec.n_faults} faults x "
-            f"{scoring.spec.n_seeds} seeds per cell); other sizes are for --dry-run"
-        )
+    if not dry_run:
+        if not scoring.full_size:
+            raise SubmissionRejected(
+                f"only full-size runs land on a board ({scoring.spec.n_faults} faults x "
+                f"{scoring.spec.n_seeds} seeds per cell); other sizes are for --dry-run"
+            )
+        raised = scoring.raised_limits()
+        if raised:
+            raise SubmissionRejected(
+                f"a landing run uses the pinned sandbox limits; {', '.join(raised)} is for --dry-run only"
+            )
     why = sandbox_unavailable()
     if why is not None:
-        raise SubmissionRejected(f"cannot land a submission without the sandbox: {why}")
-    _check_name_free(sub, read_board(board_path, benchmark, missing_ok=True), board_path)
-    check_deterministic(sub, scoring, deadline)
-    salt = new_salt()
-    results = score_submission(sub, scoring, {"public": PUBLIC, "sealed": salt}, deadline)
+        raise SubmissionRejected(f"cannot score a submission without the sandbox: {why}")
+    board = read_board(board_path, benchmark, missing_ok=dry_run)
+    _check_name_free(sub, board, board_path)
+    if not dry_run and board.open_round is None:
+        raise _no_open_round(board_path, benchmark)
+    deadline = budget(scoring)
+    cells = board_cells(scoring.spec)
+    public, digests = fly_submission(sub, scoring, PUBLIC, deadline)
+    door = secrets.randbelow(len(cells))  # which cell is flown again is not known in advance
+    check_deterministic(sub, scoring, cells[door], digests[door], deadline)
+    if dry_run:
+        return SubmitOutcome(public)
     m = sub.manifest
-    entry = _entry(
+    fields = _entry(
         name=m.name,
         kind="submission",
         privileged=False,
         summary=m.description,
-        results=results,
-        salt=salt,
+        public=public,
         scoring=scoring,
         version=m.version,
         authors=list(m.authors),
@@ -301,46 +229,228 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
         sha256=sub.sha256,
         source=_relative_source(sub.path, board_path.resolve().parent.parent),
     )
+    added: list[Entry] = []
 
     def append(board: Leaderboard) -> Leaderboard:
         _check_name_free(sub, board, board_path)  # again, under the lock: a concurrent submit may have won
-        board.entries.append(entry)
-        board.history.append(_event(board, "added", entry.name))
+        added.append(_join_open_round(board, fields, board_path))
         return board
 
-    board = update_board(board_path, benchmark, append)
-    ranking = rank_board(board)
-    ranked = next(r for r in ranking.deployable if r.entry.name == entry.name)
-    return SubmitOutcome(results["public"], entry, board, ranking, ranked)
+    new = update_board(board_path, benchmark, append)
+    return SubmitOutcome(public, added[0], new)
 
 
-def _event(board: Leaderboard, action: str, name: str, reason: str = "") -> BoardEvent:
-    return BoardEvent.model_validate(
-        {
-            "board_version": board.version + 1,
-            "utc": utc_now(),
-            "action": action,
-            "name": name,
-            "reason": reason,
-        }
+# -------------------------------------------------------------------------------------------- seal
+@dataclass
+class SealReport:
+    """What a seal did: the round, the sealed board, and each entry's outcome."""
+
+    round: int
+    board: Leaderboard
+    sealed: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+
+
+def _fly_sealed(
+    entry: Entry, scoring: Scoring, salt: bytes, submissions_dir: Path, root: Path
+) -> list[CellResult]:
+    """One entry's sealed cells, flown once (a submission: twice, in two fresh sandboxes, with its
+    commands compared). Raises ``ScftcError`` with the one-line reason it fails."""
+    if entry.kind == "builtin":
+        battery = registry(scoring.spec.version)
+        if entry.name not in battery:
+            raise LeaderboardError("built-in controller no longer registered")
+        info = battery[entry.name]
+        if artifact_hashes(info) != entry.artifacts:
+            raise LeaderboardError("its parameter or weight files changed since it was submitted")
+        return score_builtin(info, scoring, {"sealed": salt})["sealed"]
+    path = find_submission_file(entry, submissions_dir, root)
+    if path is None:
+        raise SubmissionRejected(
+            f"its file (sha256 {(entry.sha256 or '')[:12]}...) is not under {submissions_dir}"
+        )
+    sub = load_submission(path)
+    deadline = budget(scoring)
+    first, digests = fly_submission(sub, scoring, salt, deadline)
+    _, again = fly_submission(sub, scoring, salt, deadline, label=" (second flight)")
+    require_same_commands(sub, board_cells(scoring.spec), digests, again, "the sealed")
+    return first
+
+
+def seal(
+    board_path: Path,
+    scoring: Scoring,
+    key: bytes,
+    *,
+    next_key: bytes | None = None,
+    submissions_dir: Path | None = None,
+    on_entry: OnEntry | None = None,
+) -> SealReport:
+    """Seal the board's open round with the secret ``key`` derives for it, and open the next.
+
+    The first write closes the round and opens the next one (committed under ``next_key``, by
+    default ``key``); then every pending entry of the closed round is flown on its sealed draw; the
+    second write records every outcome and reveals the secret. Run again after a crash, it resumes
+    the round that is closing.
+    """
+    benchmark = scoring.spec.version
+    raised = scoring.raised_limits()
+    if raised or not scoring.full_size:
+        raise LeaderboardError(
+            "a seal uses the pinned sandbox limits and full-size cells; "
+            f"drop {', '.join(raised) or 'the sizes'}"
+        )
+    board = read_board(board_path, benchmark)
+    target = board.closing_round or board.open_round
+    if target is None:
+        raise _no_open_round(board_path, benchmark)
+    secret = round_secret(key, benchmark, target.number)
+    if commitment(secret) != target.commitment:
+        raise LeaderboardError(
+            f"this key does not open round {target.number} of {board_path} (its commitment is "
+            f"{target.commitment[:16]}...); use the key that opened it, or abandon the round"
+        )
+    number = target.number
+    if target.status == "open":
+
+        def close(board: Leaderboard) -> Leaderboard:
+            current = board.rounds[number - 1]
+            if current.status != "open":
+                raise LeaderboardError(
+                    f"round {number} of {board_path} changed while sealing began; run again"
+                )
+            current.status = "closing"
+            board.history.append(_event(board, "round-closed", f"round {number}", round=number))
+            _open_next(board, next_key or key)
+            return board
+
+        board = update_board(board_path, benchmark, close)
+    submissions_dir = submissions_dir or default_submissions_dir(board_path)
+    root = board_path.resolve().parent.parent
+    outcomes: dict[tuple[str, str], tuple[str, list[CellResult] | str]] = {}
+    for entry in [e for e in board.entries if e.round == number and e.status == "pending"]:
+        start = dt.datetime.now()
+        salt = sealed_salt(secret, benchmark, entry.name, entry.identity)
+        try:
+            outcomes[(entry.name, entry.identity)] = (
+                salt.hex(),
+                _fly_sealed(entry, scoring, salt, submissions_dir, root),
+            )
+        except ScftcError as err:
+            outcomes[(entry.name, entry.identity)] = (salt.hex(), one_line(str(err), 480))
+        except Exception as err:  # a built-in's bug is this entry's failure, not the round's
+            outcomes[(entry.name, entry.identity)] = (
+                salt.hex(),
+                one_line(f"{type(err).__name__}: {err}", 480),
+            )
+        if on_entry is not None:
+            result = outcomes[(entry.name, entry.identity)][1]
+            on_entry(
+                entry.name,
+                (dt.datetime.now() - start).total_seconds(),
+                result if isinstance(result, str) else None,
+            )
+    report = SealReport(number, board)
+
+    def reveal(board: Leaderboard) -> Leaderboard:
+        for i, entry in enumerate(board.entries):
+            outcome = outcomes.get((entry.name, entry.identity))
+            if entry.round != number or entry.status != "pending" or outcome is None:
+                continue
+            salt, result = outcome
+            if isinstance(result, str):
+                board.entries[i] = entry.model_copy(
+                    update={"status": "failed", "sealed_salt": salt, "failure": result}
+                )
+                board.history.append(_event(board, "failed", entry.name, result, number))
+                report.failed[entry.name] = result
+            else:
+                board.entries[i] = Entry.model_validate(
+                    {
+                        **entry.model_dump(by_alias=True),
+                        "status": "sealed",
+                        "sealed": result,
+                        "sealed_salt": salt,
+                    }
+                )
+                board.history.append(_event(board, "sealed", entry.name, round=number))
+                report.sealed.append(entry.name)
+        closing = board.rounds[number - 1]
+        closing.status, closing.secret = "sealed", secret.hex()
+        closing.closed_board_version = board.version + 1
+        board.history.append(
+            _event(board, "round-sealed", f"round {number}", f"secret {secret.hex()}", number)
+        )
+        return board
+
+    report.board = update_board(board_path, benchmark, reveal)
+    return report
+
+
+def _stranded(board: Leaderboard) -> bool:
+    """Whether pending entries wait in an abandoned round (to be moved to the open one)."""
+    return any(
+        e.status == "pending" and board.rounds[e.round - 1].status == "abandoned" for e in board.entries
     )
 
 
+def abandon(board_path: Path, benchmark: str, reason: str, new_key: bytes) -> Leaderboard:
+    """Abandon every unsealed round (its secret is lost or must not be used; never revealed), open
+    a new one under ``new_key``, and move their pending entries to it in a second write, so the new
+    commitment precedes them on the board. Run again after a crash between the writes, it moves
+    the entries left behind."""
+    if not reason.strip():
+        raise LeaderboardError("say why with --reason (it is kept in the board's history)")
+
+    def drop(board: Leaderboard) -> Leaderboard:
+        unsealed = [r for r in board.rounds if r.status in ("open", "closing")]
+        if not unsealed:
+            raise LeaderboardError(f"{board_path} has no open round to abandon")
+        for r in unsealed:
+            r.status, r.reason, r.closed_board_version = "abandoned", reason.strip(), board.version + 1
+            board.history.append(
+                _event(board, "round-abandoned", f"round {r.number}", reason.strip(), r.number)
+            )
+        _open_next(board, new_key)
+        return board
+
+    def move(board: Leaderboard) -> Leaderboard:
+        opened = board.open_round
+        if opened is None:
+            raise _no_open_round(board_path, benchmark)
+        for i, e in enumerate(board.entries):
+            if e.status == "pending" and board.rounds[e.round - 1].status == "abandoned":
+                board.entries[i] = e.model_copy(
+                    update={"round": opened.number, "added_board_version": board.version + 1}
+                )
+                board.history.append(
+                    _event(board, "moved", e.name, f"from abandoned round {e.round}", opened.number)
+                )
+        return board
+
+    if not _stranded(read_board(board_path, benchmark)):  # else: resume after a crash
+        update_board(board_path, benchmark, drop)
+    return update_board(board_path, benchmark, move)
+
+
+# --------------------------------------------------------------------------------------- built-ins
 @dataclass(frozen=True)
 class RebuildReport:
-    board: Leaderboard | None  # None when nothing could be scored (the file is left alone)
+    seal: SealReport | None  # None when nothing could be scored (the file is left alone)
     failed: dict[str, str]
 
 
 def rebuild(
     board_path: Path,
     scoring: Scoring,
+    key: bytes,
     names: Iterable[str] | None = None,
-    on_entry: Callable[[str, float, str | None], None] | None = None,
+    on_entry: OnEntry | None = None,
 ) -> RebuildReport:
-    """Re-score built-in controllers (all registered ones by default) on the public draw and a
-    fresh sealed draw, and write them to the board in registry order, keeping every submission.
-    A controller that cannot be scored is reported and left off the board rather than kept stale."""
+    """Re-score built-in controllers (all registered ones by default) through a round: fly their
+    public draw, put them in the open round as pending entries in place of their previous entries
+    (opening a round first if none is open), then seal the round with ``key``. A controller that
+    cannot be scored is reported and left off the board rather than kept stale."""
     benchmark = scoring.spec.version
     if not scoring.full_size:
         raise LeaderboardError("a board holds full-size entries only; drop --n-faults/--n-seeds")
@@ -349,13 +459,26 @@ def rebuild(
     for name in chosen:
         if name not in battery:
             raise UnknownNameError("controller", name, battery)
-    read_board(board_path, benchmark, missing_ok=True)  # refuse a corrupt board before spending time
-    fresh: dict[str, Entry] = {}
+    board = read_board(board_path, benchmark, missing_ok=True)  # refuse a corrupt board before flying
+    target = board.closing_round or board.open_round
+    if target is not None and commitment(round_secret(key, benchmark, target.number)) != target.commitment:
+        raise LeaderboardError(f"this key does not open round {target.number} of {board_path}; use its key")
+    fresh: dict[str, dict] = {}
     failed: dict[str, str] = {}
     for name in chosen:
         start = dt.datetime.now()
+        info = registry(benchmark)[name]
         try:
-            fresh[name] = builtin_entry(name, scoring)
+            public = score_builtin(info, scoring, {"public": PUBLIC})["public"]
+            fresh[name] = _entry(
+                name=name,
+                kind="builtin",
+                privileged=info.privileged,
+                summary=info.summary,
+                public=public,
+                scoring=scoring,
+                artifacts=artifact_hashes(info),
+            )
         except ScftcError as err:
             failed[name] = str(err)
         except Exception as err:
@@ -364,153 +487,40 @@ def rebuild(
             on_entry(name, (dt.datetime.now() - start).total_seconds(), failed.get(name))
     if not fresh:
         return RebuildReport(None, failed)
+    if board.open_round is None:
+        open_round(board_path, benchmark, key)
 
     def swap_in(board: Leaderboard) -> Leaderboard:
-        kept = {e.name: e for e in board.entries if e.kind == "builtin" and e.name in battery}
-        kept.update(fresh)
-        builtins = [kept[n] for n in battery if n in kept and n not in failed]
-        board.entries = builtins + [e for e in board.entries if e.kind == "submission"]
-        board.history += [_event(board, "rebuilt", name) for name in fresh]
+        board.entries = [
+            e for e in board.entries if not (e.kind == "builtin" and e.name in fresh and e.status != "failed")
+        ]
+        for name in battery:
+            if name in fresh:
+                _join_open_round(board, fresh[name], board_path)
         return board
 
-    return RebuildReport(update_board(board_path, benchmark, swap_in), failed)
+    update_board(board_path, benchmark, swap_in)
+    return RebuildReport(seal(board_path, scoring, key, on_entry=None), failed)
 
 
 def remove(board_path: Path, benchmark: str, name: str, reason: str) -> Leaderboard:
-    """Take entry ``name`` off the board (the removal and its reason stay in the board's history)."""
+    """Take live entry ``name`` off the board (the removal and its reason stay in the board's
+    history). A failed entry stays: failures are part of the record."""
     if not reason.strip():
         raise LeaderboardError("say why with --reason (it is kept in the board's history)")
 
     def drop(board: Leaderboard) -> Leaderboard:
-        if board.entry(name) is None:
-            raise UnknownNameError("entry", name, [e.name for e in board.entries])
-        board.entries = [e for e in board.entries if e.name != name]
-        board.history.append(_event(board, "removed", name, reason.strip()))
+        live = board.entry(name)
+        if live is None:
+            raise UnknownNameError("entry", name, [e.name for e in board.entries if e.status != "failed"])
+        board.entries = [e for e in board.entries if e is not live]
+        board.history.append(_event(board, "removed", name, reason.strip(), live.round))
         return board
 
     return update_board(board_path, benchmark, drop)
 
 
-# ---------------------------------------------------------------------------------------- verify
-def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]:
-    """Differences between the board's cells and a re-run: counts exactly, errors to 1e-6."""
-    diffs = []
-    for b, r in zip(board, rerun, strict=True):
-        label = b.label
-        if b.n != r.n:
-            diffs.append(f"{label} n {b.n} on the board, {r.n} re-run")
-            continue
-        for gate in GATES:
-            kb, kr = getattr(b, gate).k, getattr(r, gate).k
-            if kb != kr:
-                diffs.append(f"{label} {gate} k {kb} on the board, {kr} re-run")
-        for stat in ("median", "mean"):
-            vb, vr = getattr(b.final_error_deg, stat), getattr(r.final_error_deg, stat)
-            if not math.isclose(vb, vr, rel_tol=1e-6, abs_tol=1e-9):
-                diffs.append(f"{label} final error {stat} {vb:.6g} deg on the board, {vr:.6g} re-run")
-    return diffs
-
-
-def find_submission_file(entry: Entry, submissions_dir: Path, root: Path) -> Path | None:
-    """The file whose sha256 is ``entry.sha256``: at its recorded path, else under ``submissions/``."""
-    candidates: list[Path] = []
-    if entry.source:
-        candidates.append(root / entry.source)
-    if submissions_dir.is_dir():
-        candidates += sorted(submissions_dir.rglob("*.py"))
-    for path in candidates:
-        if path.is_file() and hashlib.sha256(path.read_bytes()).hexdigest() == entry.sha256:
-            return path
-    return None
-
-
-@dataclass
-class VerifyReport:
-    board: Leaderboard
-    problems: dict[str, list[str]] = field(default_factory=dict)  # entry name -> what differs
-    checked: int = 0
-
-    @property
-    def ok(self) -> bool:
-        return not self.problems
-
-    def fixes(self) -> list[str]:
-        """One suggested fix per entry that failed, fitting its kind."""
-        out = []
-        for name in self.problems:
-            entry = self.board.entry(name)
-            if entry is None or entry.kind == "builtin":
-                out.append(f"{name}: regenerate it with `scftc leaderboard rebuild --only {name}`")
-            else:
-                out.append(
-                    f"{name}: remove it (`scftc leaderboard remove {name} --reason ...`) "
-                    "or re-submit its file"
-                )
-        return out
-
-
-def verify_steps(board: Leaderboard, scoring: Scoring) -> int:
-    """Simulation steps ``verify`` will take (for its progress bar)."""
-    return len(board.entries) * steps_per_entry(scoring)
-
-
-def verify(
-    board_path: Path,
-    scoring: Scoring,
-    submissions_dir: Path | None = None,
-    on_entry: Callable[[str, list[str], float], None] | None = None,
-) -> VerifyReport:
-    """Re-fly every entry on its public draw and on its recorded sealed salt, and compare."""
-    benchmark = scoring.spec.version
-    board = read_board(board_path, benchmark)
-    root = board_path.resolve().parent.parent
-    submissions_dir = submissions_dir or default_submissions_dir(board_path)
-    report = VerifyReport(board)
-    battery = registry(benchmark)
-    for name in battery:
-        if board.entry(name) is None:
-            report.problems[name] = ["registered built-in controller missing from the board"]
-    for entry in board.entries:
-        start = dt.datetime.now()
-        problems = _verify_entry(
-            entry, replace(scoring, n_faults=None, n_seeds=None), battery, submissions_dir, root
-        )
-        if problems:
-            report.problems[entry.name] = problems
-        report.checked += 1
-        if on_entry is not None:
-            on_entry(entry.name, problems, (dt.datetime.now() - start).total_seconds())
-    return report
-
-
-def _verify_entry(
-    entry: Entry, scoring: Scoring, battery: dict[str, ControllerSpec], submissions_dir: Path, root: Path
-) -> list[str]:
-    draws = {"public": PUBLIC, "sealed": salt_from_hex(entry.sealed_salt)}
-    try:
-        if entry.kind == "builtin":
-            if entry.name not in battery:
-                return ["built-in controller no longer registered"]
-            info = battery[entry.name]
-            if info.privileged != entry.privileged:
-                return ["privileged flag differs from the registry"]
-            changed = sorted(p for p, h in artifact_hashes(info).items() if entry.artifacts.get(p) != h)
-            if changed or set(entry.artifacts) != set(info.artifacts):
-                return [f"its parameter or weight files changed since it was scored: {', '.join(changed)}"]
-            results = score_builtin(info, scoring, draws)
-        else:
-            path = find_submission_file(entry, submissions_dir, root)
-            if path is None:
-                sha = (entry.sha256 or "")[:12]
-                return [f"file with sha256 {sha}... not found under {submissions_dir}; commit it there"]
-            sub = load_submission(path)
-            if sub.manifest.name != entry.name:
-                return [f"{path} is named `{sub.manifest.name}` in its manifest"]
-            results = score_submission(sub, scoring, draws)
-    except ScftcError as err:
-        return [f"re-run failed: {err}"]
-    except Exception as err:
-        return [f"re-run failed: {type(err).__name__}: {err}"]
-    return [f"public {d}" for d in compare_cells(entry.public, results["public"])] + [
-        f"sealed {d}" for d in compare_cells(entry.sealed, results["sealed"])
-    ]
+def standing(board: Leaderboard, name: str) -> tuple[Ranking, Ranked | None]:
+    """The board's ranking and ``name``'s place in it (``None``: not ranked, e.g. pending)."""
+    ranking = rank_board(board)
+    return ranking, next((r for r in ranking.deployable if r.entry.name == name), None)

@@ -89,10 +89,15 @@ def flagged_cells(entry: Entry, ranked_classes: tuple[str, ...]) -> list[str]:
 
 @dataclass(frozen=True)
 class Ranking:
+    """Sealed entries ranked (``deployable``) and apart (``upper_bounds``); ``pending`` entries
+    (public draw only, their round not yet sealed) and ``failed`` ones are listed, never ranked."""
+
     deployable: list[Ranked]
     upper_bounds: list[Ranked]
     rule: str
     ranked_classes: tuple[str, ...]
+    pending: list[Entry] = field(default_factory=list)
+    failed: list[Entry] = field(default_factory=list)
 
 
 def rank_board(board: Leaderboard) -> Ranking:
@@ -110,7 +115,8 @@ def rank_board(board: Leaderboard) -> Ranking:
     def order(rows: list[Ranked]) -> list[Ranked]:
         return sorted(rows, key=lambda r: (-r.sealed.rate, r.entry.name))
 
-    deployable = order([ranked(e) for e in board.entries if not e.privileged])
+    sealed = [e for e in board.entries if e.status == "sealed"]
+    deployable = order([ranked(e) for e in sealed if not e.privileged])
     groups: list[list[Ranked]] = []
     for r in deployable:
         if groups and not separated(groups[-1][0].sealed, r.sealed):
@@ -122,5 +128,10 @@ def rank_board(board: Leaderboard) -> Ranking:
     for group in groups:
         out += [Ranked(r.entry, r.sealed, r.public, rank, len(group) > 1, r.flagged) for r in group]
         rank += len(group)
-    oracles = order([ranked(e) for e in board.entries if e.privileged])
-    return Ranking(out, oracles, board.ranking, classes)
+    oracles = order([ranked(e) for e in sealed if e.privileged])
+    pending = sorted(
+        (e for e in board.entries if e.status == "pending"),
+        key=lambda e: (-pooled_settled(e.public, classes).k, e.name),
+    )
+    failed = [e for e in board.entries if e.status == "failed"]
+    return Ranking(out, oracles, board.ranking, classes, pending, failed)

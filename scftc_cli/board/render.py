@@ -6,8 +6,8 @@ import csv
 import io
 import json
 
-from scftc_cli.board.models import Entry, Leaderboard
-from scftc_cli.board.ranking import Pooled, Ranked, rank_board
+from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
+from scftc_cli.board.ranking import Pooled, Ranked, Ranking, pooled_settled, rank_board
 from scftc_cli.records import CellResult
 from scftc_cli.render import markdown_lines, pct
 from scftc_cli.spec import GATES, get_spec
@@ -44,10 +44,11 @@ def board_markdown(board: Leaderboard) -> str:
         "",
         f"Updated {board.updated_utc or 'never'}. Held-out split; every entry holds {spec.episodes_per_cell} "
         f"episodes per cell ({spec.n_faults} faults x {spec.n_seeds} initial conditions) on the public draw "
-        f"(pinned seeds, the same episodes for everyone) and on its own sealed draw (a random salt, recorded "
-        f"after the run). Rates are the **settled** gate (within {spec.gates.settled_deg:g} deg over the "
-        f"final {spec.gates.dwell_steps * spec.dt_s:g} s, on the true state) in %, with Wilson 95 % "
-        "intervals.",
+        f"(pinned seeds, the same episodes for everyone) and, once its round is sealed, on its own sealed "
+        f"draw (a salt derived from the round's secret, committed before the round held any entry and "
+        f"revealed when it was sealed). Rates are the **settled** gate (within {spec.gates.settled_deg:g} "
+        f"deg over the final {spec.gates.dwell_steps * spec.dt_s:g} s, on the true state) in %, with "
+        "Wilson 95 % intervals.",
         "",
         f"**Ranking:** {ranking.rule}.",
         "",
@@ -93,6 +94,7 @@ def board_markdown(board: Leaderboard) -> str:
         label = f"`{r.entry.name}`" + (" (oracle)" if r.entry.privileged else "")
         rows.append([label, *(pct(sensors[s].settled) for s in spec.sensor_faults)])
     out += markdown_lines(headers, rows) if rows else ["(no entries yet)"]
+    out += _pending_and_failed(board, ranking, spec.fault_classes)
     flagged = [r for r in ranking.deployable if r.flagged]
     if flagged:
         out += ["", "## Flagged", ""]
@@ -101,31 +103,86 @@ def board_markdown(board: Leaderboard) -> str:
             f"{', '.join(r.flagged)}: its public score is not to be trusted (the sealed one ranks it)."
             for r in flagged
         ]
+    out += ["", "## Rounds", ""]
+    out += (
+        markdown_lines(
+            ["round", "status", "commitment (sha256 of the secret)", "opened", "closed", "secret"],
+            [
+                [
+                    str(r.number),
+                    r.status + (f": {r.reason}" if r.reason else ""),
+                    f"`{r.commitment}`",
+                    f"board v{r.opened_board_version}",
+                    f"board v{r.closed_board_version}" if r.closed_board_version else "",
+                    f"`{r.secret}`" if r.secret else "",
+                ]
+                for r in board.rounds
+            ],
+        )
+        if board.rounds
+        else ["(no round opened yet)"]
+    )
     if board.history:
         out += ["", "## History", ""]
-        out += [
-            f"- board version {e.board_version} ({e.utc}): {e.action} `{e.name}`"
-            + (f": {e.reason}" if e.reason else "")
-            for e in board.history[-20:]
-        ]
+        out += [history_line(e) for e in board.history[-20:]]
     return "\n".join(out) + "\n"
 
 
+def history_line(e: BoardEvent) -> str:
+    """``- board version 9 (utc): sealed `rls_dob` (round 1)``, with the reason if any."""
+    what = e.name if e.action.startswith("round-") else f"`{e.name}`"
+    where = f" (round {e.round})" if e.round is not None and not e.action.startswith("round-") else ""
+    return f"- board version {e.board_version} ({e.utc}): {e.action} {what}{where}" + (
+        f": {e.reason}" if e.reason else ""
+    )
+
+
+def _pending_and_failed(board: Leaderboard, ranking: Ranking, classes: tuple[str, ...]) -> list[str]:
+    """The entries that are not ranked: pending (their round's seal is still to come) and failed."""
+    out: list[str] = []
+    opened = board.open_round
+    if ranking.pending:
+        out += ["", "## Pending (public draw only; ranked once their round is sealed)", ""]
+        headers = [
+            "controller",
+            "round",
+            "kind",
+            "public settled (ranked classes)",
+            *(f"{c} (public)" for c in classes),
+        ]
+        rows = [
+            [
+                f"`{e.name}`",
+                str(e.round),
+                kind_text(e),
+                pooled_text(pooled_settled(e.public, ranking.ranked_classes)),
+                *(pct(by_class(e.public, c).settled) for c in classes),
+            ]
+            for e in ranking.pending
+        ]
+        out += markdown_lines(headers, rows)
+    elif opened is not None:
+        out += ["", f"Round {opened.number} is open and holds no entry yet."]
+    if ranking.failed:
+        out += ["", "## Failed at sealing (kept on the record; never ranked)", ""]
+        out += [f"- `{e.name}` ({kind_text(e)}, round {e.round}): {e.failure}" for e in ranking.failed]
+    return out
+
+
+def _pooled_json(p: Pooled) -> dict:
+    low, high = p.interval
+    return {"k": p.k, "n": p.n, "rate": p.rate, "ci_low": low, "ci_high": high}
+
+
 def _ranked_json(r: Ranked) -> dict:
-    low, high = r.sealed.interval
     return {
         "rank": r.rank,
         "tied": r.tied,
         "name": r.entry.name,
         "kind": r.entry.kind,
         "privileged": r.entry.privileged,
-        "sealed_settled": {
-            "k": r.sealed.k,
-            "n": r.sealed.n,
-            "rate": r.sealed.rate,
-            "ci_low": low,
-            "ci_high": high,
-        },
+        "round": r.entry.round,
+        "sealed_settled": _pooled_json(r.sealed),
         "public_settled": {"k": r.public.k, "n": r.public.n, "rate": r.public.rate},
         "flagged": r.flagged,
     }
@@ -140,6 +197,15 @@ def board_json(board: Leaderboard) -> str:
         "ranked_classes": list(ranking.ranked_classes),
         "deployable": [_ranked_json(r) for r in ranking.deployable],
         "upper_bounds": [_ranked_json(r) for r in ranking.upper_bounds],
+        "pending": [
+            {
+                "name": e.name,
+                "round": e.round,
+                "public_settled": _pooled_json(pooled_settled(e.public, ranking.ranked_classes)),
+            }
+            for e in ranking.pending
+        ],
+        "failed": [{"name": e.name, "round": e.round, "failure": e.failure} for e in ranking.failed],
     }
     return json.dumps(doc, indent=2)
 

@@ -42,7 +42,8 @@ SubBenchmarkOption = Annotated[
 ]
 
 leaderboard_app = typer.Typer(
-    help="Show the leaderboard (deployable entries ranked, oracles apart), verify or rebuild it.",
+    help="Show the leaderboard (sealed deployable entries ranked, oracles apart, pending entries listed), "
+    "verify it, and run its rounds (keygen, open, seal, abandon, rebuild: maintainers).",
     no_args_is_help=False,
     add_completion=False,
     rich_markup_mode=None,  # plain help: flags shown as flags, brackets as written
@@ -123,6 +124,28 @@ def show_command(
         stderr.print(f"wrote {out}", highlight=False)
 
 
+KeyFileOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--key-file",
+        help="The round key (a 0600 file outside the repository; `scftc leaderboard keygen`) "
+        "[default: the SCFTC_ROUND_KEY environment variable].",
+        show_default=False,
+    ),
+]
+
+
+def _report_entry(name: str, seconds: float, error: str | None) -> None:
+    if error is None:
+        stderr.print(f"scored {escape(name)} ({seconds:.1f} s)", highlight=False)
+    else:
+        stderr.print(f"[red]failed {escape(name)}:[/red] {escape(error)}", highlight=False, soft_wrap=True)
+
+
+def _says_where(board_path: Path, board_version: int, what: str) -> None:
+    typer.echo(f"{what}; wrote {board_path} (board version {board_version})")
+
+
 @leaderboard_app.command("verify")
 @exits_cleanly
 def verify_command(
@@ -135,17 +158,26 @@ def verify_command(
             help="Folder of submitted files [default: ../submissions from the board].", show_default=False
         ),
     ] = None,
+    base: Annotated[
+        Path | None,
+        typer.Option(
+            help="A trusted copy of the board (e.g. main's): the board may only add pending entries to it.",
+            show_default=False,
+        ),
+    ] = None,
     step_timeout: Annotated[float, typer.Option(hidden=True, min=0.01)] = SandboxLimits().step_timeout_s,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
-    """Re-fly every entry on its public draw and its recorded sealed salt; exit 1 naming every
-    entry whose numbers differ, with the fix that fits it.
+    """Check every entry's round chain (the commitment came first, the revealed secret hashes to
+    it, the salt derives from it), then re-fly every entry on its public draw and its sealed salt;
+    exit 1 naming every entry that fails, with the fix that fits it.
 
     Built-ins come from the registry, submissions from submissions/ (found by sha256).
     """
-    from scftc_cli.board.ops import Scoring, verify, verify_steps
+    from scftc_cli.board.flights import Scoring
     from scftc_cli.board.store import read_board
+    from scftc_cli.board.verify import verify, verify_steps
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.spec import get_spec
@@ -153,6 +185,7 @@ def verify_command(
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
     spec = get_spec(bench)
     board = read_board(board_path, bench)
+    trusted = read_board(base, bench) if base is not None else None
     scoring = Scoring(spec, limits=replace(SandboxLimits(), step_timeout_s=step_timeout))
     total = len(board.entries)
     done = {"i": 0}
@@ -160,31 +193,161 @@ def verify_command(
 
     def on_entry(name: str, problems: list[str], seconds: float) -> None:
         done["i"] += 1
-        status = "[green]ok[/green]" if not problems else f"[red]DIFFERS[/red] ({len(problems)} numbers)"
-        stderr.print(f"[{done['i']}/{total}] {escape(name)}: {status} ({seconds:.1f} s)", highlight=False)
+        status = "[green]ok[/green]" if not problems else f"[red]FAILS[/red]: {escape(problems[0])}"
+        more = f" (+{len(problems) - 1} more)" if len(problems) > 1 else ""
+        stderr.print(
+            f"[{done['i']}/{total}] {escape(name)}: {status}{more} ({seconds:.1f} s)",
+            highlight=False,
+            soft_wrap=True,
+        )
 
     with (
         cluster(workers, scheduler) as runner,
         progress_bar(f"verifying {board_path}", verify_steps(board, scoring)) as progress,
     ):
         report = verify(
-            board_path, replace(scoring, progress=progress, runner=runner), submissions, on_entry=on_entry
+            board_path,
+            replace(scoring, progress=progress, runner=runner),
+            submissions,
+            on_entry=on_entry,
+            base=trusted,
         )
+    for problem in report.board_problems:
+        stderr.print(f"[red]not an extension of {escape(str(base))}:[/red] {escape(problem)}", soft_wrap=True)
     for name, problems in report.problems.items():
         for problem in problems:
             stderr.print(
-                f"[red]mismatch:[/red] {escape(name)}: {escape(problem)}", highlight=False, soft_wrap=True
+                f"[red]problem:[/red] {escape(name)}: {escape(problem)}", highlight=False, soft_wrap=True
             )
     for fix in report.fixes():
         stderr.print(f"fix: {escape(fix)}", highlight=False, soft_wrap=True)
     elapsed = time.monotonic() - start
     if not report.ok:
-        raise LeaderboardError(
-            f"{board_path} does not match the code for {', '.join(report.problems)} (fixes above)"
-        )
+        names = ", ".join(report.problems) or "its rounds or history"
+        raise LeaderboardError(f"{board_path} does not hold for {names} (details above)")
     typer.echo(
-        f"verified {report.checked} entries of {board_path} (version {board.version}) in {elapsed:.0f} s"
+        f"verified {report.checked} entries of {board_path} (version {board.version}, "
+        f"{len(board.rounds)} rounds) in {elapsed:.0f} s"
     )
+
+
+@leaderboard_app.command("keygen")
+@exits_cleanly
+def keygen_command(
+    path: Annotated[Path, typer.Argument(help="Where to write the new key (outside the repository).")],
+) -> None:
+    """Write a new round key (32 random bytes, hex) to PATH with mode 0600. Keep it outside the
+    repository, or in the CI secret store as SCFTC_ROUND_KEY; whoever holds it must not submit."""
+    from scftc_cli.board.rounds import write_key
+    from scftc_cli.board.store import repo_root
+    from scftc_cli.errors import UsageError
+
+    target = path.expanduser().resolve()
+    if target.is_relative_to(repo_root().resolve()) or target.is_relative_to(Path.cwd().resolve()):
+        raise UsageError(
+            f"{path} lies inside the repository or the current folder; a round key lives outside it "
+            "(e.g. ~/.config/scftc/round.key)"
+        )
+    write_key(target)
+    typer.echo(f"wrote a new round key to {target} (mode 0600)")
+
+
+@leaderboard_app.command("open")
+@exits_cleanly
+def open_command(
+    ctx: typer.Context,
+    leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
+    key_file: KeyFileOption = None,
+) -> None:
+    """Open the board's next round: publish the commitment (sha256) of the round's secret, which
+    the key derives. Submissions then land in it as pending entries until it is sealed."""
+    from scftc_cli.board.ops import open_round
+    from scftc_cli.board.rounds import read_key
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    board = open_round(board_path, bench, read_key(key_file))
+    r = board.rounds[-1]
+    _says_where(board_path, board.version, f"opened round {r.number}, commitment {r.commitment}")
+
+
+@leaderboard_app.command("seal")
+@exits_cleanly
+def seal_command(
+    ctx: typer.Context,
+    leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
+    key_file: KeyFileOption = None,
+    next_key_file: Annotated[
+        Path | None,
+        typer.Option(
+            help="Open the next round under this key instead (rotating the key).", show_default=False
+        ),
+    ] = None,
+    submissions: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
+        ),
+    ] = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
+) -> None:
+    """Seal the open round (maintainers): reveal its secret, fly every pending entry once on the
+    sealed draw its salt derives (submissions twice, in fresh sandboxes, commands compared), record
+    every outcome (failures too), and open the next round. Run again after a crash to resume."""
+    from scftc_cli.board.flights import Scoring, steps_per_entry
+    from scftc_cli.board.ops import seal
+    from scftc_cli.board.rounds import read_key
+    from scftc_cli.board.store import read_board
+    from scftc_cli.distributed.runner import cluster
+    from scftc_cli.spec import get_spec
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    key = read_key(key_file)
+    next_key = read_key(next_key_file, what="--next-key-file") if next_key_file is not None else None
+    scoring = Scoring(get_spec(bench))
+    board = read_board(board_path, bench)
+    target = board.closing_round or board.open_round
+    pending = [e for e in board.entries if e.status == "pending" and target and e.round == target.number]
+    total = sum(steps_per_entry(scoring, 1 if e.kind == "builtin" else 2) for e in pending)
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar(f"sealing {len(pending)} entries", total) as progress,
+    ):
+        report = seal(
+            board_path,
+            replace(scoring, progress=progress, runner=runner),
+            key,
+            next_key=next_key,
+            submissions_dir=submissions,
+            on_entry=_report_entry,
+        )
+    _says_where(
+        board_path,
+        report.board.version,
+        f"sealed round {report.round}: {len(report.sealed)} entries sealed, {len(report.failed)} failed; "
+        f"round {report.board.rounds[-1].number} is open",
+    )
+
+
+@leaderboard_app.command("abandon")
+@exits_cleanly
+def abandon_command(
+    ctx: typer.Context,
+    reason: Annotated[str, typer.Option(help="Why (kept in the board's history).")],
+    leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
+    key_file: KeyFileOption = None,
+) -> None:
+    """Abandon the unsealed rounds (their secret is lost or must not be used: never revealed) and
+    open a new one under the key given; their pending entries move to it."""
+    from scftc_cli.board.ops import abandon
+    from scftc_cli.board.rounds import read_key
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    board = abandon(board_path, bench, reason, read_key(key_file))
+    _says_where(board_path, board.version, f"abandoned; round {board.rounds[-1].number} is open")
 
 
 @leaderboard_app.command("rebuild")
@@ -197,41 +360,45 @@ def rebuild_command(
         list[str] | None,
         typer.Option(help="Re-score only this built-in controller (repeatable).", show_default=False),
     ] = None,
+    key_file: KeyFileOption = None,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
-    """Re-score the built-in battery on the public draw and a fresh sealed draw (n = 500 per cell)
-    and write it to the leaderboard; submissions are kept."""
-    from scftc_cli.board.ops import Scoring, rebuild, steps_per_entry
+    """Re-score the built-in battery through a round (maintainers): fly the public draw
+    (n = 500 per cell), put the entries in the open round, and seal it with the key (which also
+    seals any pending submission). Submissions are kept."""
+    from scftc_cli.board.flights import Scoring, steps_per_entry
+    from scftc_cli.board.ops import rebuild
+    from scftc_cli.board.rounds import read_key
+    from scftc_cli.board.store import read_board
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.registry import registry
     from scftc_cli.spec import get_spec
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    key = read_key(key_file)
     spec = get_spec(bench)
     scoring = Scoring(spec)
     names = only or list(registry(spec.version))
-    total = len(names) * steps_per_entry(scoring)
-
-    def on_entry(name: str, seconds: float, error: str | None) -> None:
-        if error is None:
-            stderr.print(f"scored {escape(name)} ({seconds:.1f} s)", highlight=False)
-        else:
-            stderr.print(
-                f"[red]could not score {escape(name)}:[/red] {escape(error)}", highlight=False, soft_wrap=True
-            )
-
+    board = read_board(board_path, bench, missing_ok=True)
+    waiting = [e for e in board.entries if e.status == "pending" and e.kind == "submission"]
+    # the public draw of each built-in, then the seal: each built-in once, each submission twice
+    total = len(names) * steps_per_entry(scoring) + 2 * len(waiting) * steps_per_entry(scoring, 1)
     with (
         cluster(workers, scheduler) as runner,
         progress_bar(f"scoring {len(names)} controllers", total) as progress,
     ):
         report = rebuild(
-            board_path, replace(scoring, progress=progress, runner=runner), only, on_entry=on_entry
+            board_path, replace(scoring, progress=progress, runner=runner), key, only, _report_entry
         )
-    if report.board is not None:
-        written = len(names) - len(report.failed)
-        typer.echo(f"wrote {written} built-in entries to {board_path} (board version {report.board.version})")
+    if report.seal is not None:
+        s = report.seal
+        _says_where(
+            board_path,
+            s.board.version,
+            f"sealed round {s.round} with {len(s.sealed)} entries ({len(s.failed)} failed)",
+        )
     if report.failed:
         raise LeaderboardError(
             f"could not score {', '.join(report.failed)} (left off the board); fix them and run "
@@ -253,7 +420,7 @@ def remove_command(
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
     board = remove(board_path, bench, name, reason)
-    typer.echo(f"removed `{name}` from {board_path} (board version {board.version})")
+    _says_where(board_path, board.version, f"removed `{name}`")
 
 
 @exits_cleanly

@@ -1,5 +1,5 @@
-"""``scftc submit``: validate a submitted controller, fly it sandboxed on the held-out cells, and
-append it to the leaderboard."""
+"""``scftc submit``: validate a submitted controller, fly it sandboxed on the held-out cells, and add
+it to the board's open round (``--seal``: and seal the round, on a board whose key you hold)."""
 
 from __future__ import annotations
 
@@ -21,8 +21,24 @@ def submit_command(
     benchmark: BenchmarkOption = DEFAULT,
     leaderboard: BoardOption = None,
     dry_run: Annotated[
-        bool, typer.Option("--dry-run", help="Score the public draw only and write nothing (any cell size).")
+        bool,
+        typer.Option(
+            "--dry-run",
+            help="Run every check of a landing run on the public draw and write nothing (any cell size).",
+        ),
     ] = False,
+    seal: Annotated[
+        bool,
+        typer.Option(
+            "--seal",
+            help="Also seal the round at once (your own board, whose round key you hold: --key-file or "
+            "SCFTC_ROUND_KEY).",
+        ),
+    ] = False,
+    key_file: Annotated[
+        Path | None,
+        typer.Option("--key-file", help="The round key, with --seal.", show_default=False),
+    ] = None,
     n_faults: Annotated[
         int | None, typer.Option(help="Faults per cell, --dry-run only [default: 50].", min=1)
     ] = None,
@@ -34,14 +50,19 @@ def submit_command(
     cpu_s: Annotated[int, typer.Option(hidden=True, min=1)] = _LIMITS.cpu_s,
     memory_mb: Annotated[int, typer.Option(hidden=True, min=64)] = _LIMITS.memory_mb,
 ) -> None:
-    """Fly FILE's controller in the sandbox on the held-out cells and append it to the leaderboard.
+    """Fly FILE's controller in the sandbox on the public draw and add it to the board's open round
+    as a pending entry; it is ranked once a maintainer seals the round (`scftc leaderboard seal`),
+    on a sealed draw nobody could know when the file was fixed.
 
-    It is first run twice on a short train prefix (it must be deterministic), then scored on the
-    public draw and on a sealed draw keyed by a fresh random salt; it ranks on the sealed draw.
-    A rejected submission exits 1 with the reason and leaves the leaderboard unchanged.
+    One whole public cell is flown twice, in two fresh sandboxes, and every command compared: the
+    controller must be deterministic. A rejected submission exits 1 with the reason and leaves the
+    board unchanged.
     """
-    from scftc_cli.board.ops import Scoring, steps_per_entry, submit
+    from scftc_cli.board.flights import Scoring, steps_per_entry
+    from scftc_cli.board.ops import seal as seal_round
+    from scftc_cli.board.ops import standing, submit
     from scftc_cli.board.render import kind_text, pooled_text, rank_text
+    from scftc_cli.board.rounds import read_key
     from scftc_cli.board.store import default_board_path
     from scftc_cli.errors import UsageError
     from scftc_cli.render import pct
@@ -50,28 +71,46 @@ def submit_command(
     spec = get_spec(benchmark)
     if not dry_run and (n_faults is not None or n_seeds is not None):
         raise UsageError("--n-faults and --n-seeds are for --dry-run only: a board holds full-size entries")
+    if seal and dry_run:
+        raise UsageError("--seal lands the entry; a --dry-run writes nothing: give one of them")
+    if key_file is not None and not seal:
+        raise UsageError("--key-file goes with --seal")
+    key = read_key(key_file) if seal else None
     board_path = leaderboard or default_board_path(spec.version)
     limits = replace(
         _LIMITS, step_timeout_s=step_timeout, total_wall_s=total_wall, cpu_s=cpu_s, memory_mb=memory_mb
     )
     scoring = Scoring(spec, n_faults, n_seeds, limits)
-    total = steps_per_entry(scoring, draws=1 if dry_run else 2)
+    total = steps_per_entry(scoring, draws=1) + spec.steps  # the public draw and one cell again
     with progress_bar(f"{file.name} on {spec.version}", total) as progress:
         outcome = submit(file, board_path, replace(scoring, progress=progress), dry_run=dry_run)
     public = {c.fault_class: c for c in outcome.public if c.sensor is None}
     typer.echo("public draw:  " + "  ".join(f"{c} {pct(public[c].settled)}" for c in spec.fault_classes))
-    if outcome.ranked is None or outcome.board is None or outcome.entry is None or outcome.ranking is None:
-        typer.echo(
-            f"dry run: public draw only, {board_path} left unchanged (submit without --dry-run to rank)"
-        )
+    if outcome.entry is None or outcome.board is None:
+        typer.echo(f"dry run: every check passed; nothing written ({board_path} left unchanged)")
         return
-    entry, ranked = outcome.entry, outcome.ranked
-    sealed = {c.fault_class: c for c in entry.sealed if c.sensor is None}
+    entry = outcome.entry
+    typer.echo(
+        f"added `{entry.name}` to round {entry.round} as a pending entry; wrote {board_path} "
+        f"(board version {outcome.board.version})"
+    )
+    if key is None:
+        typer.echo("it is ranked when a maintainer seals the round (`scftc leaderboard seal`)")
+        return
+    with progress_bar(f"sealing round {entry.round}", steps_per_entry(scoring, draws=2)) as progress:
+        report = seal_round(board_path, replace(scoring, progress=progress), key)
+    ranking, ranked = standing(report.board, entry.name)
+    if ranked is None:
+        reason = report.failed.get(entry.name, "not sealed")
+        typer.echo(f"sealed round {report.round}; `{entry.name}` failed: {reason}; wrote {board_path}")
+        raise typer.Exit(1)
+    sealed = {c.fault_class: c for c in ranked.entry.sealed if c.sensor is None}
     typer.echo("sealed draw:  " + "  ".join(f"{c} {pct(sealed[c].settled)}" for c in spec.fault_classes))
     typer.echo(
-        f"{entry.name} ({kind_text(entry)}): sealed settled {pooled_text(ranked.sealed)} % over "
-        f"{', '.join(spec.ranked_classes)}, rank {rank_text(ranked)} of {len(outcome.ranking.deployable)}"
+        f"{entry.name} ({kind_text(ranked.entry)}): sealed settled {pooled_text(ranked.sealed)} % over "
+        f"{', '.join(spec.ranked_classes)}, rank {rank_text(ranked)} of {len(ranking.deployable)}"
     )
-    if ranked.flagged:
-        typer.echo(f"flagged: public beats sealed beyond both intervals on {', '.join(ranked.flagged)}")
-    typer.echo(f"added `{entry.name}` to {board_path} (board version {outcome.board.version})")
+    typer.echo(
+        f"sealed round {report.round}; wrote {board_path} (board version {report.board.version}); "
+        f"round {report.board.rounds[-1].number} is open"
+    )

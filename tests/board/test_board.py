@@ -24,10 +24,11 @@ from scipy.stats import fisher_exact
 from typer.testing import CliRunner
 
 import scftc_cli.board.store as store
-from scftc_cli.board.models import Entry, Leaderboard
+from scftc_cli.board.models import Entry, Leaderboard, Round
 from scftc_cli.board.ops import remove
 from scftc_cli.board.ranking import pooled_settled, rank_board
 from scftc_cli.board.render import board_csv, board_json, board_markdown
+from scftc_cli.board.rounds import commitment
 from scftc_cli.commands.app import app
 from scftc_cli.errors import LeaderboardError, UnknownNameError
 from scftc_cli.evaluate import board_cells
@@ -38,6 +39,26 @@ from scftc_cli.spec import V1
 runner = CliRunner()
 N = V1.episodes_per_cell  # 500: boards hold full-size entries only
 SALT = "ab" * 32
+SECRET = "5e" * 32
+
+
+def round_one() -> Round:
+    """A sealed round 1 (committed at board version 1, sealed at version 3): hand-made entries
+    belong to it (added at version 2)."""
+    return Round(
+        number=1,
+        commitment=commitment(bytes.fromhex(SECRET)),
+        opened_board_version=1,
+        opened_utc="2026-01-01T00:00:00Z",
+        status="sealed",
+        secret=SECRET,
+        closed_board_version=3,
+    )
+
+
+def board_of(entries: list[Entry], **fields: object) -> Leaderboard:
+    """A board whose round 1 holds ``entries`` (sealed)."""
+    return Leaderboard(rounds=[round_one()], entries=entries, **fields)
 
 
 def read_board(path: Path) -> Leaderboard:
@@ -80,6 +101,9 @@ def entry(
         created_utc="2026-01-01T00:00:00Z",
         n_faults=V1.n_faults,
         n_seeds=V1.n_seeds,
+        status="sealed",
+        round=1,
+        added_board_version=2,
         public=cells(sealed if public is None else public),
         sealed=cells(sealed),
         sealed_salt=SALT,
@@ -94,7 +118,7 @@ def ks(sign: int, gain: int, gain_bias: int, **more: int) -> dict[str, int]:
 def board(tmp_path: Path) -> Path:
     path = tmp_path / "leaderboard" / "scftc-v1.json"
     entries = [entry("alpha", ks(500, 500, 480)), entry("beta", ks(500, 500, 470))]
-    update_board(path, lambda b: b.model_copy(update={"entries": entries}))
+    update_board(path, lambda b: b.model_copy(update={"rounds": [round_one()], "entries": entries}))
     return path
 
 
@@ -109,7 +133,7 @@ def test_the_ranked_quantity_is_the_pooled_sealed_count_with_its_wilson_interval
 
 
 def test_tie_groups_follow_fisher_on_the_sealed_draw_and_oracles_stand_apart():
-    board = Leaderboard(
+    board = board_of(
         entries=[
             entry("top", ks(500, 500, 490)),  # 1490 / 1500
             entry("close", ks(500, 500, 484)),  # 1484: Fisher does not separate it from `top`
@@ -130,7 +154,7 @@ def test_tie_groups_follow_fisher_on_the_sealed_draw_and_oracles_stand_apart():
 
 
 def test_public_beating_sealed_beyond_the_intervals_is_flagged():
-    board = Leaderboard(
+    board = board_of(
         entries=[entry("cheat", ks(0, 0, 0), public=ks(500, 500, 500)), entry("honest", ks(450, 440, 430))]
     )
     flags = {r.entry.name: r.flagged for r in rank_board(board).deployable}
@@ -139,7 +163,7 @@ def test_public_beating_sealed_beyond_the_intervals_is_flagged():
 
 
 def test_renderings_say_how_they_rank_and_show_both_draws():
-    board = Leaderboard(
+    board = board_of(
         version=3,
         ranking="RULE TEXT",
         entries=[
@@ -300,7 +324,7 @@ def test_remove_takes_an_entry_off_and_keeps_the_reason(board: Path):
         "non-deterministic on verify",
         version + 1,
     )
-    assert "removed `beta`: non-deterministic on verify" in board_markdown(after)
+    assert "removed `beta` (round 1): non-deterministic on verify" in board_markdown(after)
     with pytest.raises(UnknownNameError, match="alpha"):
         remove(board, "scftc-v1", "gamma", "typo")
     with pytest.raises(LeaderboardError, match="--reason"):
@@ -316,12 +340,14 @@ def test_group_options_work_before_or_after_the_subcommand_and_conflicts_are_ref
     sub: list[str], board: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ):
     import scftc_cli.board.ops as ops
+    import scftc_cli.board.verify as verifying
 
     seen: list[Path] = []
-    monkeypatch.setattr(ops, "verify", lambda path, *a, **k: seen.append(path) or _report(path))
+    monkeypatch.setattr(verifying, "verify", lambda path, *a, **k: seen.append(path) or _report(path))
     monkeypatch.setattr(
         ops, "rebuild", lambda path, *a, **k: seen.append(path) or ops.RebuildReport(None, {})
     )
+    monkeypatch.setenv("SCFTC_ROUND_KEY", "00" * 32)
     other = tmp_path / "other.json"
     for args in (
         ["leaderboard", "--leaderboard", str(board), *sub],
@@ -331,7 +357,10 @@ def test_group_options_work_before_or_after_the_subcommand_and_conflicts_are_ref
             update_board(
                 board,
                 lambda b: b.model_copy(
-                    update={"entries": [entry("alpha", ks(1, 1, 1)), entry("beta", ks(1, 1, 1))]}
+                    update={
+                        "rounds": [round_one()],
+                        "entries": [entry("alpha", ks(1, 1, 1)), entry("beta", ks(1, 1, 1))],
+                    }
                 ),
             )
         result = runner.invoke(app, args)
@@ -347,7 +376,7 @@ def test_group_options_work_before_or_after_the_subcommand_and_conflicts_are_ref
 
 
 def _report(path: Path):
-    from scftc_cli.board.ops import VerifyReport
+    from scftc_cli.board.verify import VerifyReport
 
     return VerifyReport(read_board(path))
 

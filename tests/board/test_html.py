@@ -18,7 +18,7 @@ from scftc_cli.board.models import Entry, Leaderboard
 from scftc_cli.board.ranking import rank_board
 from scftc_cli.commands.app import app
 from scftc_cli.submission.manifest import parse_manifest
-from tests.board.test_board import entry, ks
+from tests.board.test_board import board_of, entry, ks
 
 runner = CliRunner()
 CHROMIUM, DRIVER = shutil.which("chromium"), shutil.which("chromedriver")
@@ -53,7 +53,7 @@ def hostile_entry() -> Entry:
 
 
 def board() -> Leaderboard:
-    return Leaderboard(
+    return board_of(
         version=7,
         ranking="the rule",
         entries=[

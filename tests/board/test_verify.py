@@ -1,6 +1,6 @@
-"""``scftc leaderboard verify`` re-flies every entry on its public draw and its recorded sealed
-salt: it passes on an honest board and fails, naming the entry and the fix that fits it, after any
-number, salt or file is edited by hand. Also: the committed board."""
+"""``scftc leaderboard verify`` checks each entry's round chain, then re-flies it on its public draw
+and its sealed salt: it passes on an honest board and fails, naming the entry and the fix that fits
+it, after any number, salt, secret, commitment or file is edited by hand. Also: the committed board."""
 
 from __future__ import annotations
 
@@ -11,9 +11,12 @@ import pytest
 from typer.testing import CliRunner
 
 import scftc_cli.board.ops as ops
+import scftc_cli.board.verify as verifying
 from scftc_cli.board import store
+from scftc_cli.board.flights import Scoring
 from scftc_cli.board.models import Leaderboard, schema_documents
-from scftc_cli.board.ops import Scoring, builtin_entry, verify
+from scftc_cli.board.rounds import new_key
+from scftc_cli.board.verify import compare_cells, verify
 from scftc_cli.commands.app import app
 from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.registry import make_controller, registry
@@ -25,22 +28,32 @@ COMMITTED = ROOT / "leaderboard" / "scftc-v1.json"
 SMALL = ("pd", "teacher")
 
 
-@pytest.fixture(scope="module")
-def entries():
-    return {name: builtin_entry(name, Scoring(V1)) for name in SMALL}
-
-
 @pytest.fixture
 def small_registry(monkeypatch: pytest.MonkeyPatch) -> None:
     """Pretend the battery is just ``pd`` and ``teacher`` so that a two-entry board is complete."""
     full = registry()
-    monkeypatch.setattr(ops, "registry", lambda _benchmark=None: {n: full[n] for n in SMALL})
+    small = {n: full[n] for n in SMALL}
+    monkeypatch.setattr(ops, "registry", lambda _benchmark=None: small)
+    monkeypatch.setattr(verifying, "registry", lambda _benchmark=None: small)
+
+
+@pytest.fixture(scope="module")
+def sealed_text(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """A board of ``pd`` and ``teacher`` sealed through round 1 (round 2 open), as text."""
+    path = tmp_path_factory.mktemp("board") / "leaderboard" / "scftc-v1.json"
+    with pytest.MonkeyPatch.context() as mp:
+        full = registry()
+        mp.setattr(ops, "registry", lambda _benchmark=None: {n: full[n] for n in SMALL})
+        report = ops.rebuild(path, Scoring(V1), new_key())
+    assert report.failed == {} and report.seal is not None and report.seal.sealed == list(SMALL)
+    return path.read_text()
 
 
 @pytest.fixture
-def board(tmp_path: Path, entries) -> Path:
+def board(tmp_path: Path, sealed_text: str) -> Path:
     path = tmp_path / "leaderboard" / "scftc-v1.json"
-    store.update_board(path, "scftc-v1", lambda b: b.model_copy(update={"entries": list(entries.values())}))
+    path.parent.mkdir(parents=True)
+    path.write_text(sealed_text)
     return path
 
 
@@ -63,38 +76,66 @@ def test_verify_passes_then_fails_after_any_hand_edit(board: Path, small_registr
 
     # a number on the sealed draw (consistent with the schema, so only a re-run can catch it)
     err = edited(lambda d: d["entries"][1]["sealed"][2]["final_error_deg"].__setitem__("median", 0.5))
-    assert "mismatch: teacher: sealed gain_bias final error median" in err
-    assert "fix: teacher: regenerate it with `scftc leaderboard rebuild --only teacher`" in err
-    # the salt: the re-run flies other episodes
+    assert "problem: teacher: sealed gain_bias final error median" in err
+    assert "fix: teacher: regenerate it through a round: `scftc leaderboard rebuild --only teacher`" in err
+    # the salt: it no longer derives from the round's secret
     err = edited(lambda d: d["entries"][0].__setitem__("sealed_salt", "cd" * 32))
-    assert "mismatch: pd: sealed" in err
+    assert "problem: pd: its sealed salt does not derive from round 1's revealed secret" in err
+    # the revealed secret: it no longer hashes to the commitment (the board refuses it on read)
+    err = edited(lambda d: d["rounds"][0].__setitem__("secret", "cd" * 32))
+    assert "rounds.0: round 1: the revealed secret does not hash to its commitment" in err
+    # the commitment and the secret together (a round made up after the fact): the history of
+    # the board no longer shows that commitment entering it before the entries
+    from scftc_cli.board.rounds import commitment
+
+    def forge(d: dict) -> None:
+        d["rounds"][0]["secret"] = "ef" * 32
+        d["rounds"][0]["commitment"] = commitment(bytes.fromhex("ef" * 32))
+
+    err = edited(forge)
+    assert "problem: pd: the history does not show round 1's commitment entering the board" in err
     # a count: the arithmetic check refuses the file before anything runs
     err = edited(lambda d: d["entries"][0]["public"][0]["touch_once"].__setitem__("k", 7))
     assert "edited by hand" in err
 
 
-@pytest.mark.slow
-def test_verify_names_a_built_in_whose_artifacts_changed(board: Path, small_registry: None):
+def test_verify_names_a_built_in_whose_artifacts_changed(
+    board: Path, small_registry: None, monkeypatch: pytest.MonkeyPatch
+):
+    # the recorded hashes are the entry's identity: editing them breaks the chain
     doc = json.loads(board.read_text())
     doc["entries"][0]["artifacts"] = {"params/pd.yaml": "0" * 64}
     board.write_text(json.dumps(doc))
     report = verify(board, Scoring(V1))
-    assert report.problems == {"pd": ["its parameter or weight files changed since it was scored: "]}
-    assert report.fixes() == ["pd: regenerate it with `scftc leaderboard rebuild --only pd`"]
+    assert report.problems["pd"][0].startswith(
+        "its sealed salt does not derive from round 1's revealed secret"
+    )
+    # a parameter file edited after sealing: the chain holds, the files do not
+    doc["entries"][0]["artifacts"] = {}
+    board.write_text(json.dumps(doc))
+    monkeypatch.setattr(verifying, "artifact_hashes", lambda info: {"params/pd.yaml": "1" * 64})
+    report = verify(board, Scoring(V1))
+    assert report.problems == {
+        "pd": ["its parameter or weight files changed since it was scored: params/pd.yaml"],
+        "teacher": ["its parameter or weight files changed since it was scored: params/pd.yaml"],
+    }
+    assert report.fixes()[0] == "pd: regenerate it through a round: `scftc leaderboard rebuild --only pd`"
 
 
 def test_verify_names_a_missing_built_in_and_a_missing_file(board: Path, tmp_path: Path):
     doc = json.loads(board.read_text())
-    sub = dict(doc["entries"][0], name="ghost", kind="submission", sha256="1" * 64, source="gone/ghost.py")
-    doc["entries"] = [sub]
+    ghost = dict(doc["entries"][0], name="ghost", kind="submission", sha256="1" * 64, source="gone/ghost.py")
+    ghost.update(status="pending", sealed=[], sealed_salt=None, round=2, added_board_version=doc["version"])
+    doc["entries"] = [ghost]
+    doc["history"].append(dict(doc["history"][-1], action="added", name="ghost", round=2, reason=""))
     board.write_text(json.dumps(doc))
     report = verify(board, Scoring(V1))
-    assert report.problems["ghost"][0].startswith("file with sha256 111111111111... not found")
+    assert report.problems["ghost"] == [
+        f"its submitted file (sha256 111111111111...) is not found under {tmp_path / 'submissions'}"
+    ]
     assert "registered built-in controller missing from the board" in report.problems["bias_oracle"]
-    assert (
-        "ghost: remove it (`scftc leaderboard remove ghost --reason ...`) or re-submit its file"
-        in report.fixes()
-    )
+    fix = f"ghost: commit the submitted file under {tmp_path / 'submissions'}, or point verify at the folder"
+    assert f"{fix} that holds it with --submissions DIR" in report.fixes()
 
 
 # ------------------------------------------------------------------------------ the committed board
@@ -124,8 +165,12 @@ def test_committed_board_holds_the_whole_battery_on_sealed_draws():
     built_in = {e.name: e for e in board.entries if e.kind == "builtin"}
     battery = registry()
     assert set(built_in) == set(battery), "run `scftc leaderboard rebuild`"
+    assert all(e.status == "sealed" for e in board.entries)  # only round-sealed entries
     salts = {e.sealed_salt for e in board.entries}
     assert len(salts) == len(board.entries)  # every entry has its own sealed draw
+    from scftc_cli.board.verify import chain_problems
+
+    assert chain_problems(board) == {}
     for name, e in built_in.items():
         assert e.privileged == battery[name].privileged
         assert set(e.artifacts) == set(battery[name].artifacts)
@@ -138,7 +183,7 @@ def test_committed_board_matches_a_rerun_of_one_public_cell(name: str):
     assert entry is not None
     rerun = evaluate_cell(lambda _c: make_controller(name), V1, Cell("test", "gain_bias")).result
     on_board = next(c for c in entry.public if c.key == ("test", "gain_bias", None))
-    assert ops.compare_cells([on_board], [rerun]) == []
+    assert compare_cells([on_board], [rerun]) == []
 
 
 def test_leaderboard_command_shows_the_committed_board():

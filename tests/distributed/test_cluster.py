@@ -18,9 +18,11 @@ from typer.testing import CliRunner
 pytest.importorskip("distributed")
 
 import scftc_cli.board.ops as ops
+import scftc_cli.board.verify as verifying
 import scftc_cli.distributed.runner as runner_module
-from scftc_cli.board import store
-from scftc_cli.board.ops import Scoring, builtin_entry, verify
+from scftc_cli.board.flights import Scoring
+from scftc_cli.board.rounds import new_key
+from scftc_cli.board.verify import verify
 from scftc_cli.commands.app import app
 from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.distributed.runner import ChunkTask, Runner, cluster, run_chunk
@@ -145,9 +147,10 @@ def test_eval_with_workers_prints_the_serial_cells():
 def test_verify_on_the_cluster_passes_and_catches_an_edit(dask_runner: Runner, tmp_path: Path, monkeypatch):
     small = {n: registry()[n] for n in ("pd", "teacher")}
     monkeypatch.setattr(ops, "registry", lambda _benchmark=None: small)
+    monkeypatch.setattr(verifying, "registry", lambda _benchmark=None: small)
     board = tmp_path / "leaderboard" / "scftc-v1.json"
-    entries = [builtin_entry(n, Scoring(V1, runner=dask_runner)) for n in small]
-    store.update_board(board, "scftc-v1", lambda b: b.model_copy(update={"entries": entries}))
+    report = ops.rebuild(board, Scoring(V1, runner=dask_runner), new_key())  # scored through a round
+    assert report.seal is not None and report.seal.sealed == ["pd", "teacher"]
     assert verify(board, Scoring(V1, runner=dask_runner)).ok
     assert verify(board, Scoring(V1)).ok  # scored on the cluster, verified in process: the same numbers
     doc = json.loads(board.read_text())

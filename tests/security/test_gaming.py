@@ -1,6 +1,8 @@
 """Gaming the board instead of the sandbox: a look-up table of the public draw, a controller that
 is not deterministic, a tiny n. Each is refused with the board byte-identical, or accepted only as
-what it is: ranked on its sealed draw, which no file can know in advance."""
+what it is: ranked on its sealed draw, which no file can know in advance (the round's secret was
+committed before the file was submitted and is revealed only when the round is sealed).
+``tests/security/test_rounds.py`` plays the attacks on the rounds themselves."""
 
 from __future__ import annotations
 
@@ -11,7 +13,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from scftc_cli.board.ops import abandon
 from scftc_cli.board.ranking import rank_board
+from scftc_cli.board.rounds import read_key, write_key
 from scftc_cli.board.store import read_board
 from scftc_cli.commands.app import app
 from scftc_cli.sim.v1 import TESTBED
@@ -76,11 +80,18 @@ def lookup_source() -> str:
 
 
 @pytest.fixture
-def committed_board(tmp_path: Path) -> Path:
-    """A copy of the committed scftc-v1 board (the real built-in entries, rls_dob among them)."""
+def key(tmp_path: Path) -> Path:
+    return write_key(tmp_path / "keys" / "round.key")
+
+
+@pytest.fixture
+def committed_board(tmp_path: Path, key: Path) -> Path:
+    """A copy of the committed scftc-v1 board (the real built-in entries, rls_dob among them) whose
+    open round we replace by one we hold the key of (its round secret stays with the maintainers)."""
     path = tmp_path / "leaderboard" / "scftc-v1.json"
     path.parent.mkdir()
     shutil.copy(ROOT / "leaderboard" / "scftc-v1.json", path)
+    abandon(path, V1.version, "a private copy for this test", read_key(key))
     return path
 
 
@@ -90,10 +101,12 @@ def submit(path: Path, board: Path, *extra: str):
 
 @needs_sandbox
 @pytest.mark.slow
-def test_a_lookup_of_the_public_draw_ranks_on_its_sealed_draw_below_rls_dob(tmp_path: Path, committed_board):
+def test_a_lookup_of_the_public_draw_ranks_on_its_sealed_draw_below_rls_dob(
+    tmp_path: Path, committed_board: Path, key: Path
+):
     path = tmp_path / "lookup.py"
     path.write_text(lookup_source())
-    result = submit(path, committed_board)
+    result = submit(path, committed_board, "--seal", "--key-file", str(key))
     assert result.exit_code == 0, result.output
 
     ranking = rank_board(read_board(committed_board, V1.version))

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from scftc_cli.board.store import update_board as _update_board
+from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.sim.v1 import public_context
@@ -79,7 +79,7 @@ def write_submission(
 def board(tmp_path: Path) -> Path:
     """An (empty) board file, so that 'unchanged' means something."""
     path = tmp_path / "leaderboard" / "scftc-v1.json"
-    _update_board(path, V1.version, lambda b: b)
+    open_round(path, V1.version, bytes(32))  # a board with round 1 open (a test key)
     return path
 
 

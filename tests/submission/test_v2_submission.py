@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from scftc_cli.board.store import update_board
+from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
 from scftc_cli.spec import V2
 from scftc_cli.submission import isolation
@@ -27,7 +27,7 @@ TINY = ["--dry-run", "--n-faults", "1", "--n-seeds", "1"]
 @pytest.fixture
 def board(tmp_path: Path) -> Path:
     path = tmp_path / "leaderboard" / "scftc-v2.json"
-    update_board(path, V2.version, lambda b: b)
+    open_round(path, V2.version, bytes(32))  # a board with round 1 open (a test key)
     return path
 
 

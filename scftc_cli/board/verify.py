@@ -1,0 +1,234 @@
+"""``scftc leaderboard verify``: check the round chain, then re-fly every entry and compare.
+
+The chain, per entry (``chain_problems``): its round's commitment entered the board's history
+before the entry did, a sealed or failed entry's round revealed a secret that hashes to the
+commitment, and its salt is the one the secret derives for its name and identity. Only then are
+the numbers checked: every live entry is re-flown on the public draw and, once sealed, on its
+sealed salt. A board can also be checked against an earlier, trusted copy (``extends_problems``):
+a submission's pull request may only add pending entries; rounds, sealed and failed entries and
+history already on the trusted board must stay as they were.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from scftc_cli.board.draws import PUBLIC, salt_from_hex
+from scftc_cli.board.flights import (
+    Draws,
+    Scoring,
+    artifact_hashes,
+    find_submission_file,
+    score_builtin,
+    score_submission,
+    steps_per_entry,
+)
+from scftc_cli.board.models import Entry, Leaderboard
+from scftc_cli.board.rounds import sealed_salt
+from scftc_cli.board.store import default_submissions_dir, read_board
+from scftc_cli.errors import ScftcError
+from scftc_cli.records import CellResult
+from scftc_cli.registry import ControllerSpec, registry
+from scftc_cli.spec import GATES
+from scftc_cli.submission.manifest import load_submission
+
+
+def chain_problems(board: Leaderboard) -> dict[str, list[str]]:
+    """Each entry whose round chain does not hold, with one line per broken link."""
+    opened = {(e.round, e.board_version, e.reason) for e in board.history if e.action == "round-opened"}
+    joined = {(e.name, e.round, e.board_version) for e in board.history if e.action in ("added", "moved")}
+    problems: dict[str, list[str]] = {}
+    for entry in board.entries:
+        found: list[str] = []
+        r = board.rounds[entry.round - 1]
+        if (r.number, r.opened_board_version, f"commitment {r.commitment}") not in opened:
+            found.append(
+                f"the history does not show round {r.number}'s commitment entering the board at version "
+                f"{r.opened_board_version}"
+            )
+        if (entry.name, entry.round, entry.added_board_version) not in joined:
+            found.append(
+                f"the history does not show it joining round {r.number} at board version "
+                f"{entry.added_board_version}"
+            )
+        if entry.status != "pending":
+            if r.secret is None:  # the board's own validation makes this unreachable for sealed rounds
+                found.append(f"round {r.number} revealed no secret")
+            else:
+                derived = sealed_salt(
+                    bytes.fromhex(r.secret), board.benchmark_version, entry.name, entry.identity
+                )
+                if entry.sealed_salt != derived.hex():
+                    found.append(
+                        f"its sealed salt does not derive from round {r.number}'s revealed secret and its "
+                        "identity: the sealed draw was not the round's"
+                    )
+        if found:
+            problems[entry.name] = found
+    return problems
+
+
+def extends_problems(base: Leaderboard, board: Leaderboard) -> list[str]:
+    """What ``board`` changed of the trusted ``base`` beyond adding pending entries (empty: it only
+    adds pending entries, or is ``base`` itself)."""
+    out = []
+    if board.rounds != base.rounds:
+        out.append("its rounds differ from the trusted board's (only a maintainer's seal changes rounds)")
+    if board.history[: len(base.history)] != base.history:
+        out.append("it rewrites history the trusted board already holds")
+    kept = {(e.name, e.status, e.round): e for e in board.entries}
+    for e in base.entries:
+        if kept.get((e.name, e.status, e.round)) != e:
+            out.append(
+                f"entry {e.name} ({e.status}, round {e.round}) differs from the trusted board's or is gone"
+            )
+    before = {(e.name, e.status, e.round) for e in base.entries}
+    for e in board.entries:
+        if (e.name, e.status, e.round) not in before and e.status != "pending":
+            out.append(f"entry {e.name} is new and {e.status}: only a seal makes an entry {e.status}")
+    return out
+
+
+def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]:
+    """Differences between the board's cells and a re-run: counts exactly, errors to 1e-6."""
+    diffs = []
+    for b, r in zip(board, rerun, strict=True):
+        label = b.label
+        if b.n != r.n:
+            diffs.append(f"{label} n {b.n} on the board, {r.n} re-run")
+            continue
+        for gate in GATES:
+            kb, kr = getattr(b, gate).k, getattr(r, gate).k
+            if kb != kr:
+                diffs.append(f"{label} {gate} k {kb} on the board, {kr} re-run")
+        for stat in ("median", "mean"):
+            vb, vr = getattr(b.final_error_deg, stat), getattr(r.final_error_deg, stat)
+            if not math.isclose(vb, vr, rel_tol=1e-6, abs_tol=1e-9):
+                diffs.append(f"{label} final error {stat} {vb:.6g} deg on the board, {vr:.6g} re-run")
+    return diffs
+
+
+@dataclass
+class VerifyReport:
+    board: Leaderboard
+    problems: dict[str, list[str]] = field(default_factory=dict)  # entry name -> what is wrong
+    board_problems: list[str] = field(default_factory=list)  # against the trusted board
+    fixes_by_name: dict[str, str] = field(default_factory=dict)
+    checked: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems and not self.board_problems
+
+    def fixes(self) -> list[str]:
+        """One suggested fix per entry that failed, fitting its kind and its problem."""
+        out = []
+        for name in self.problems:
+            if name in self.fixes_by_name:
+                out.append(f"{name}: {self.fixes_by_name[name]}")
+                continue
+            entry = self.board.entry(name)
+            if entry is None or entry.kind == "builtin":
+                out.append(
+                    f"{name}: regenerate it through a round: `scftc leaderboard rebuild --only {name}`"
+                )
+            else:
+                out.append(
+                    f"{name}: remove it (`scftc leaderboard remove {name} --reason ...`) and re-submit its "
+                    "file in the open round"
+                )
+        return out
+
+
+def verify_steps(board: Leaderboard, scoring: Scoring) -> int:
+    """Simulation steps ``verify`` will take (for its progress bar)."""
+    return sum(
+        steps_per_entry(scoring, 2 if e.status == "sealed" else 1)
+        for e in board.entries
+        if e.status != "failed"
+    )
+
+
+def verify(
+    board_path: Path,
+    scoring: Scoring,
+    submissions_dir: Path | None = None,
+    on_entry: Callable[[str, list[str], float], None] | None = None,
+    base: Leaderboard | None = None,
+) -> VerifyReport:
+    """Check the round chain of every entry, then re-fly every live entry (public draw; sealed
+    salt too once sealed) and compare. With ``base``, also check the board only adds pending
+    entries to it."""
+    benchmark = scoring.spec.version
+    board = read_board(board_path, benchmark)
+    root = board_path.resolve().parent.parent
+    submissions_dir = submissions_dir or default_submissions_dir(board_path)
+    report = VerifyReport(board)
+    if base is not None:
+        report.board_problems = extends_problems(base, board)
+    battery = registry(benchmark)
+    for name in battery:
+        if board.entry(name) is None:
+            report.problems[name] = ["registered built-in controller missing from the board"]
+    chain = chain_problems(board)
+    full = replace(scoring, n_faults=None, n_seeds=None)
+    for entry in board.entries:
+        start = dt.datetime.now()
+        problems = chain.get(entry.name, [])
+        if not problems and entry.status != "failed":
+            problems = _refly(entry, full, battery, submissions_dir, root, report)
+        if problems:
+            report.problems[entry.name] = problems
+        report.checked += 1
+        if on_entry is not None:
+            on_entry(entry.name, problems, (dt.datetime.now() - start).total_seconds())
+    return report
+
+
+def _refly(
+    entry: Entry,
+    scoring: Scoring,
+    battery: dict[str, ControllerSpec],
+    submissions_dir: Path,
+    root: Path,
+    report: VerifyReport,
+) -> list[str]:
+    draws: Draws = {"public": PUBLIC}
+    if entry.sealed_salt is not None:
+        draws["sealed"] = salt_from_hex(entry.sealed_salt)
+    try:
+        if entry.kind == "builtin":
+            if entry.name not in battery:
+                return ["built-in controller no longer registered"]
+            info = battery[entry.name]
+            if info.privileged != entry.privileged:
+                return ["privileged flag differs from the registry"]
+            changed = sorted(p for p, h in artifact_hashes(info).items() if entry.artifacts.get(p) != h)
+            if changed or set(entry.artifacts) != set(info.artifacts):
+                return [f"its parameter or weight files changed since it was scored: {', '.join(changed)}"]
+            results = score_builtin(info, scoring, draws)
+        else:
+            path = find_submission_file(entry, submissions_dir, root)
+            if path is None:
+                sha = (entry.sha256 or "")[:12]
+                report.fixes_by_name[entry.name] = (
+                    f"commit the submitted file under {submissions_dir}, or point verify at the folder "
+                    "that holds it with --submissions DIR"
+                )
+                return [f"its submitted file (sha256 {sha}...) is not found under {submissions_dir}"]
+            sub = load_submission(path)
+            if sub.manifest.name != entry.name:
+                return [f"{path} is named `{sub.manifest.name}` in its manifest"]
+            results = score_submission(sub, scoring, draws)
+    except ScftcError as err:
+        return [f"re-run failed: {err}"]
+    except Exception as err:
+        return [f"re-run failed: {type(err).__name__}: {err}"]
+    out = [f"public {d}" for d in compare_cells(entry.public, results["public"])]
+    if "sealed" in results:
+        out += [f"sealed {d}" for d in compare_cells(entry.sealed, results["sealed"])]
+    return out
