@@ -24,8 +24,9 @@ from scftc_cli.errors import LeaderboardError
 
 LOCK_TIMEOUT_S = 300.0
 FIX_CORRUPT = (
-    "restore it from version control (`git checkout -- {path}`), or move it aside and regenerate the "
-    "built-ins (`scftc leaderboard rebuild{flag}`; submissions must then be re-submitted)"
+    "restore it from version control (`git checkout -- {path}`), or move it aside and re-score the "
+    "built-ins through a new round (`scftc leaderboard rebuild{flag} --key-file KEY`; submissions must "
+    "then be re-submitted)"
 )
 
 
@@ -59,7 +60,10 @@ def read_board(path: Path, benchmark: str, *, missing_ok: bool = False) -> Leade
     if not path.exists():
         if missing_ok:
             return empty_board(benchmark)
-        raise LeaderboardError(f"no leaderboard at {path}; create it with `scftc leaderboard rebuild{flag}`")
+        raise LeaderboardError(
+            f"no leaderboard at {path}; create it with `scftc leaderboard open{flag} --key-file KEY` "
+            "(a maintainer's round key: `scftc leaderboard keygen`)"
+        )
     try:
         raw = json.loads(path.read_bytes())
     except (ValueError, UnicodeDecodeError) as err:

@@ -385,7 +385,7 @@ def test_showing_a_missing_board_says_how_to_create_it(tmp_path: Path):
     missing = tmp_path / "none.json"
     result = runner.invoke(app, ["leaderboard", "--leaderboard", str(missing)])
     assert result.exit_code == 1 and f"no leaderboard at {missing}" in result.stderr
-    assert "scftc leaderboard rebuild" in result.stderr
+    assert "scftc leaderboard open" in result.stderr and "--key-file" in result.stderr
 
 
 def test_help_shows_flags_as_flags():
