@@ -62,7 +62,7 @@ test: setup-dev
 	$(BIN)/ruff format --check $(SOURCES)
 	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
-	$(BIN)/pytest -q
+	SCFTC_FORBID_SKIPS=1 $(BIN)/pytest -q
 	$(BIN)/scftc leaderboard verify
 	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
 
