@@ -30,7 +30,7 @@ def test_train_export_and_dry_run(tmp_path: Path):
     assert result.returncode == 0, result.stderr[-2000:]
     assert not list(scratch.glob("SB3-*"))  # stable-baselines3 leaves no log folder behind
     assert f"wrote {out}" in result.stdout
-    assert "public draw:" in result.stdout and "dry run: public draw only" in result.stdout
+    assert "public draw:" in result.stdout and "dry run: every check passed; nothing written" in result.stdout
     sub = load_submission(out)  # one valid file: its sha256 covers the weights inside it
     assert sub.manifest.name == "tiny_ppo" and "WEIGHTS" in sub.source.decode()
     assert sub.sha256 == hashlib.sha256(out.read_bytes()).hexdigest()
