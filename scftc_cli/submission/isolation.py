@@ -41,10 +41,16 @@ The seccomp deny list and why (x86-64 names; a name the running architecture lac
 - Network: every socket call (``socket``, ``socketpair``, ``connect``, ``bind``, ``listen``,
   ``accept(4)``, ``send*``/``recv*``, ``(get|set)sockopt``, ``shutdown``, ``get(sock|peer)name``).
 - Files beyond read/write: ``mknod(at)`` (devices, FIFOs), the ``setxattr``/``removexattr``
-  family (incl. the ``*xattrat`` calls), ``flock`` and ``fcntl`` record locks and leases
-  (a read-only file can still be locked or leased, which would stall the host's writers),
-  ``name_to_handle_at``/``open_by_handle_at`` (the classic container escape),
-  ``fanotify_*``, ``quotactl(_fd)``, ``file_setattr``, ``cachestat`` (page-cache probing).
+  family (incl. the ``*xattrat`` calls), ``flock`` and ``fcntl`` record locks, leases and
+  directory notifications (a read-only file can still be locked or leased, which would stall
+  the host's writers), ``name_to_handle_at``/``open_by_handle_at`` (the classic container
+  escape), ``fanotify_*`` and ``inotify_*`` (watching host folders mounted in the sandbox),
+  ``quotactl(_fd)``, ``file_setattr``, ``cachestat`` (page-cache probing).
+- Memory-backed files, which hold host memory outside the address space and past the
+  process's death while a descriptor or key names them: ``memfd_create``, System V shared
+  memory, message queues and semaphores (``shm*``, ``msg*``, ``sem*``), POSIX message queues
+  (``mq_*``).
+- ``sched_setaffinity``: where no cpu cgroup caps the run, its CPU affinity does.
 - Mounts and namespaces: ``mount``, ``umount2``, ``pivot_root``, ``chroot``, ``unshare``,
   ``setns``, the new mount API (``open_tree(_attr)``, ``move_mount``, ``fs*``,
   ``mount_setattr``, ``statmount``, ``listmount``).
@@ -56,6 +62,14 @@ The seccomp deny list and why (x86-64 names; a name the running architecture lac
 - Unknown and future system calls (numbers above the newest this build names) answer
   ``ENOSYS``, the answer C libraries expect before falling back to an older call.
 - Any other architecture's calling convention (i386 ``int 0x80``, x32) kills the process.
+
+Argument rules compare what the kernel reads. A filter sees every argument as 64 bits, but the
+kernel truncates an ``int`` argument to its low 32: ``fcntl(fd, F_SETLEASE | 1 << 32, ...)`` is a
+lease to the kernel, yet not equal to ``F_SETLEASE`` in 64 bits. So the ``fcntl`` command rules
+compare the low 32 bits only (``MASKED_EQ`` with mask ``0xffffffff``). The ``NE`` rules on ``int``
+arguments (``kill``/``tgkill`` PID, ``setpriority``, ``prlimit64`` PID) refuse whenever any of
+the 64 bits differs, a superset of what the kernel would see as different: high bits can only
+make them refuse more. ``clone``'s flags and ``prlimit64``'s pointer are 64-bit to the kernel too.
 
 ``execve`` cannot be refused: bubblewrap loads the filter and then executes the interpreter.
 It is harmless: without ``fork`` a process can only replace itself, keeping its namespaces,
@@ -99,8 +113,9 @@ MIN_BWRAP = (0, 8, 0)  # --disable-userns, --size
 
 # clone(2) flags
 _CLONE_THREAD = 0x00010000
-# fcntl(2) commands that lock or lease: F_GETLK..F_SETLKW, F_OFD_*, F_SETLEASE, F_NOTIFY
+# fcntl(2) commands that lock, lease or watch: F_SETLK, F_SETLKW, F_OFD_SETLK(W), F_SETLEASE, F_NOTIFY
 _FCNTL_LOCKS = (6, 7, 37, 38, 1024, 1026)
+_LOW_32 = 0xFFFF_FFFF  # the kernel reads an int argument's low 32 bits only
 
 _DENY = (
     # processes
@@ -113,6 +128,12 @@ _DENY = (
     # files beyond reading and writing
     "mknod mknodat setxattr lsetxattr fsetxattr removexattr lremovexattr fremovexattr flock "
     "name_to_handle_at open_by_handle_at fanotify_init fanotify_mark quotactl quotactl_fd cachestat "
+    "inotify_init inotify_init1 inotify_add_watch "
+    # memory-backed files
+    "memfd_create shmget shmat shmdt shmctl msgget msgsnd msgrcv msgctl semget semop semtimedop "
+    "semctl mq_open mq_unlink mq_timedsend mq_timedreceive mq_notify mq_getsetattr "
+    # the CPU affinity that caps a run where no cgroup does
+    "sched_setaffinity "
     # mounts and namespaces
     "mount umount umount2 pivot_root chroot unshare setns open_tree move_mount fsopen fsconfig "
     "fsmount fspick mount_setattr "
@@ -162,7 +183,7 @@ def seccomp_program() -> bytes:
     filt.add_rule(eperm, "setpriority", sc.Arg(0, sc.NE, 0))  # a process group or a user
     filt.add_rule(eperm, "setpriority", sc.Arg(1, sc.NE, 0))  # another process
     for command in _FCNTL_LOCKS:
-        filt.add_rule(eperm, "fcntl", sc.Arg(1, sc.EQ, command))
+        filt.add_rule(eperm, "fcntl", sc.Arg(1, sc.MASKED_EQ, _LOW_32, command))
     if any(sc.system_arch() == getattr(sc.Arch, arch) for arch in _UNIFIED_ARCHES):
         for number in range(_NEWEST_NAMED + 1, _FUTURE_END):
             if number not in _NEW_ALLOW:
