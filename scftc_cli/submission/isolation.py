@@ -7,17 +7,32 @@ here relies on Python-level checks (the child's audit hook only words error mess
    namespaces, uid/gid 65534 inside, no capabilities, no further user namespaces. The
    interpreter is PID 1 of its own PID namespace (``--as-pid-1``): no other process of the host
    can even be named, and when it dies the kernel kills anything left in the namespace. Its
-   filesystem is a fresh, read-only root holding only the base interpreter, the system
-   libraries, the packages a submission may import (numpy, scipy, ``scftc_cli``) and the
-   submitted file (copied by bubblewrap from a memfd, never a file on disk); ``/tmp`` is a
-   size-limited private tmpfs and the only writable place; ``/proc`` (its own) and ``/dev``
+   filesystem is a fresh, read-only root holding only the base interpreter's executable, its
+   ``libpython`` and its standard library (with ``site-packages`` hidden under an empty
+   read-only tmpfs, as are the system Python's package folders), the system libraries, the
+   packages a submission may import (numpy, scipy, ``scftc_cli``) and the submitted file
+   (copied by bubblewrap from a memfd, never a file on disk). Nothing is writable: ``/tmp`` is
+   an empty read-only folder (see "No writable /tmp" below); ``/proc`` (its own) and ``/dev``
    are read-only. The network namespace holds nothing but its own loopback. The environment
    is rebuilt from scratch (``--clearenv``), bubblewrap's own included.
 2. **seccomp** (``seccomp_program``): a BPF filter compiled here with ``pyseccomp`` and handed
    to bubblewrap with ``--seccomp FD``, so it is in force from the interpreter's first
    instruction. It refuses (``EPERM``) what a controller never needs and the attacks used.
-3. **rlimits** (``limit_child``): address space, CPU seconds, file size, open files and core
-   dumps, set on the bubblewrap process before it starts and inherited by the child.
+3. **rlimits** (``limit_child``): address space, CPU seconds, file size, open files,
+   processes (``RLIMIT_NPROC``) and core dumps, set on the bubblewrap process before it starts
+   and inherited by the child.
+4. **a cgroup per run** (``cgroups``): processes plus threads, memory including kernel memory,
+   and CPU bandwidth. Where the host allows no cgroup, ``RLIMIT_NPROC`` (under an unprivileged
+   uid) bounds threads, the run is pinned to ``ceil(cpus)`` CPUs (``sched_setaffinity`` is
+   refused inside, so it cannot widen that), and ``caps_missing`` names what stays uncapped.
+
+No writable /tmp. A controller computes commands from observations and needs no disk. A private
+tmpfs pins host memory that ``RLIMIT_AS`` does not count: bubblewrap can cap its bytes
+(``--size``) but not its inodes, and 395 000 empty files cost 400 MB of kernel memory. A memory
+cgroup would count both, but not every host offers one, and a submission must behave the same on
+every host (``scftc leaderboard verify`` re-flies it elsewhere). So there is no writable place at
+all; ``/tmp`` remains as an empty read-only folder (the working directory and ``HOME``), where a
+write fails with ``EROFS`` rather than a puzzling ``ENOENT``.
 
 Which kernel uid the sandbox holds: uid 65534 *inside* is mapped onto the uid that starts
 bubblewrap. Run by root, that would be uid 0, and a few kernel checks trust uid 0 without asking
@@ -98,6 +113,7 @@ import signal
 import stat
 import subprocess
 import sys
+import sysconfig
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -212,11 +228,15 @@ class Layout:
         python: the base interpreter's executable (same path inside and outside).
         binds: ``(host path, sandbox path)`` pairs, mounted read-only in this order.
         symlinks: ``(target, sandbox path)`` pairs (``/lib -> usr/lib`` on merged-/usr systems).
+        hidden: sandbox folders covered by an empty read-only tmpfs after the binds: the package
+            folders of the base interpreter and of the system Python (whatever is installed
+            there is not the submission's to import).
     """
 
     python: str
     binds: tuple[tuple[str, str], ...]
     symlinks: tuple[tuple[str, str], ...]
+    hidden: tuple[str, ...] = ()
 
 
 def _package_dir(name: str) -> str | None:
@@ -226,14 +246,30 @@ def _package_dir(name: str) -> str | None:
     return os.path.realpath(next(iter(spec.submodule_search_locations)))
 
 
+def _interpreter() -> tuple[str, list[tuple[str, str]], list[str]]:
+    """The base interpreter's executable, the binds it needs (itself, its ``libpython`` if it has
+    one, its standard library and ``lib-dynload``), and its package folders to hide."""
+    python = os.path.realpath(getattr(sys, "_base_executable", None) or sys.executable)
+    stdlib = os.path.dirname(os.path.realpath(os.__file__))  # lib/python3.X
+    binds = [(python, python), (stdlib, stdlib)]
+    dynload = sysconfig.get_config_var("DESTSHARED")  # lib-dynload: the standard C extensions
+    if dynload and os.path.isdir(dynload) and not os.path.realpath(dynload).startswith(stdlib + "/"):
+        binds.append((os.path.realpath(dynload), dynload))
+    if sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
+        library = os.path.join(libdir or "", soname or "")
+        if libdir and soname and os.path.isfile(library):  # at the path the executable names it by
+            binds.append((os.path.realpath(library), library))
+    hidden = [os.path.join(stdlib, name) for name in ("site-packages", "dist-packages")]
+    for system in ("/usr/lib/python3", f"/usr/lib/python3.{sys.version_info[1]}"):
+        hidden += [os.path.join(system, name) for name in ("site-packages", "dist-packages")]
+    return python, binds, [path for path in hidden if os.path.isdir(path)]
+
+
 @functools.cache
 def layout() -> Layout:
     """The interpreter, system libraries and packages a submission needs, and nothing else."""
-    base = os.path.realpath(sys.base_prefix)
-    python = os.path.realpath(getattr(sys, "_base_executable", None) or sys.executable)
-    binds: list[tuple[str, str]] = [(base, base)]
-    if not python.startswith(base + "/"):
-        binds.append((python, python))
+    python, binds, hidden = _interpreter()
     symlinks: list[tuple[str, str]] = []
     for top in ("/lib", "/lib32", "/lib64", "/libx32"):
         if os.path.islink(top):
@@ -252,7 +288,7 @@ def layout() -> Layout:
         libs = os.path.join(os.path.dirname(folder), f"{name}.libs")  # manylinux wheels' libraries
         if os.path.isdir(libs):
             binds.append((os.path.realpath(libs), f"{SITE}/{name}.libs"))
-    return Layout(python=python, binds=tuple(binds), symlinks=tuple(symlinks))
+    return Layout(python=python, binds=tuple(binds), symlinks=tuple(symlinks), hidden=tuple(hidden))
 
 
 def sandbox_filename(filename: str) -> str:
@@ -267,7 +303,6 @@ def bwrap_argv(
     source_path: str,
     seccomp_fd: int,
     info_fd: int,
-    tmp_mb: int,
     command: list[str],
 ) -> list[str]:
     """The bubblewrap command line that runs ``command`` (the interpreter and its arguments).
@@ -277,7 +312,6 @@ def bwrap_argv(
         source_path: where the copy appears (``sandbox_filename``).
         seccomp_fd: a readable fd holding ``seccomp_program()``.
         info_fd: bubblewrap writes the child's host PID there as JSON.
-        tmp_mb: size of the private ``/tmp``.
         command: the program and arguments to run inside.
     """
     lay = layout()
@@ -303,7 +337,6 @@ def bwrap_argv(
     env = {
         "PATH": "/usr/bin:/bin",
         "HOME": "/tmp",
-        "TMPDIR": "/tmp",
         "LC_ALL": "C.UTF-8",
         "PYTHONHASHSEED": "0",
         "PYTHONPATH": SITE,
@@ -311,13 +344,13 @@ def bwrap_argv(
     }
     for key, value in env.items():
         argv += ["--setenv", key, value]
-    # /tmp first, so that an interpreter or package that lives under the host's /tmp is bound
-    # over it rather than hidden by it
-    argv += ["--size", str(tmp_mb << 20), "--perms", "0700", "--tmpfs", "/tmp"]
+    argv += ["--dir", "/tmp"]  # an empty folder of the root, read-only with it (nothing is writable)
     for host, inside in lay.binds:
         argv += ["--ro-bind", host, inside]
     for target, inside in lay.symlinks:
         argv += ["--symlink", target, inside]
+    for inside in lay.hidden:  # an empty tmpfs over each package folder, made read-only
+        argv += ["--size", "4096", "--perms", "0555", "--tmpfs", inside, "--remount-ro", inside]
     # /proc read-only: run by root, the sandbox's kernel uid is 0, and sysctls (/proc/sys) trust
     # that uid alone; /dev read-only: its tmpfs would otherwise be a second writable place.
     argv += ["--proc", "/proc", "--remount-ro", "/proc", "--dev", "/dev", "--remount-ro", "/dev"]
@@ -458,13 +491,12 @@ def _trial_run(program: bytes, run_as: int | None) -> str | None:
         os.lseek(source_fd, 0, os.SEEK_SET)
         os.write(seccomp_fd, program)
         os.lseek(seccomp_fd, 0, os.SEEK_SET)
-        check = "import numpy, scftc_cli.protocol; open('/tmp/ok', 'w').write('ok')"
+        check = "import numpy, scftc_cli.protocol; print('ok')"
         argv = bwrap_argv(
             source_fd=source_fd,
             source_path=sandbox_filename("trial.py"),
             seccomp_fd=seccomp_fd,
             info_fd=info_w,
-            tmp_mb=1,
             command=[layout().python, "-B", "-s", "-S", "-P", "-c", check],
         )
         result = subprocess.run(
@@ -482,7 +514,7 @@ def _trial_run(program: bytes, run_as: int | None) -> str | None:
     finally:
         for fd in (source_fd, seccomp_fd, info_r, info_w):
             os.close(fd)
-    if result.returncode == 0:
+    if result.returncode == 0 and result.stdout.strip() == "ok":
         return None
     lines = [ln.strip() for ln in result.stderr.splitlines() if ln.strip()]
     why = lines[-1][:200] if lines else f"exit status {result.returncode}"

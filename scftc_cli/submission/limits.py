@@ -21,8 +21,8 @@ class SandboxLimits:
             that is merely slow is stopped here with a clear reason instead of after hours.
         cpu_s: total CPU seconds of the process (``RLIMIT_CPU``; killed one second later).
         memory_mb: address space of the process (``RLIMIT_AS``), MiB.
-        file_mb: largest file it may write (``RLIMIT_FSIZE``), MiB.
-        tmp_mb: size of its private ``/tmp``, the only writable place, MiB.
+        file_mb: largest file it may write (``RLIMIT_FSIZE``), MiB (nothing is writable; kept
+            as a second bound).
         open_files: open file descriptors (``RLIMIT_NOFILE``).
     """
 
@@ -32,5 +32,4 @@ class SandboxLimits:
     cpu_s: int = 1800
     memory_mb: int = 4096
     file_mb: int = 64
-    tmp_mb: int = 64
     open_files: int = 256

@@ -171,7 +171,6 @@ class Sandbox:
             source_path=inside,
             seccomp_fd=seccomp_fd,
             info_fd=info_w,
-            tmp_mb=self.limits.tmp_mb,
             command=python_command(config),
         )
         try:
