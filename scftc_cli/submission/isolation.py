@@ -1,4 +1,5 @@
-"""Operating-system isolation of a submission: the bubblewrap command, its seccomp filter, rlimits.
+"""Operating-system isolation of a submission: the bubblewrap command, its seccomp filter, rlimits
+(and, in ``cgroups``, the run's cgroup).
 
 A submitted file is untrusted code. It runs in a child process that the kernel confines; nothing
 here relies on Python-level checks (the child's audit hook only words error messages):
@@ -118,6 +119,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from scftc_cli.submission import cgroups
 from scftc_cli.submission.limits import SandboxLimits
 
 SANDBOX_UID = 65534  # "nobody", inside the sandbox (and outside, when started by root: ``sandbox_uid``)
@@ -369,22 +371,54 @@ def python_command(config: dict[str, object]) -> list[str]:
 _PR_SET_PDEATHSIG = 1
 
 
-def limit_child(limits: SandboxLimits, run_as: int | None = None) -> Callable[[], None]:
-    """A ``preexec_fn`` for the bubblewrap process: rlimits (soft = hard, so they cannot be
-    raised), the drop to ``run_as`` (uid and gid, no groups) when given, and death with this
-    process (bubblewrap passes it on to the sandbox)."""
+def _tasks_of(uid: int) -> int:
+    """How many tasks (processes and threads) of real uid ``uid`` run on the host now."""
+    count = 0
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            status = Path(f"/proc/{entry}/status").read_text()
+        except OSError:
+            continue
+        fields = dict(line.split(":", 1) for line in status.splitlines() if ":" in line)
+        if int(fields.get("Uid", "-1 0").split()[0]) == uid:
+            count += int(fields.get("Threads", "1"))
+    return count
+
+
+def limit_child(
+    limits: SandboxLimits, run_as: int | None = None, group: cgroups.RunGroup | None = None
+) -> Callable[[], None]:
+    """A ``preexec_fn`` for the bubblewrap process: joining the run's cgroup ``group`` (first,
+    while this process still has the rights), rlimits (soft = hard, so they cannot be raised),
+    affinity to ``ceil(limits.cpus)`` CPUs where ``group`` has no cpu cap, the drop to ``run_as``
+    (uid and gid, no groups) when given, and death with this process (bubblewrap passes it on).
+
+    ``RLIMIT_NPROC`` counts every task of the uid on the host (from the sandbox's user namespace
+    up), so it is set to the uid's tasks now plus ``limits.pids``: about ``pids`` more for the
+    run. The kernel does not apply it to uid 0, which is why the pids cgroup is the cap that holds.
+    """
     mib = 1 << 20
+    uid = os.getuid() if run_as is None else run_as
     settings = (
         (resource.RLIMIT_AS, limits.memory_mb * mib),
         (resource.RLIMIT_CPU, limits.cpu_s),  # past it SIGXCPU (ignored by a PID 1), 1 s on: SIGKILL
         (resource.RLIMIT_FSIZE, limits.file_mb * mib),
         (resource.RLIMIT_NOFILE, limits.open_files),
+        (resource.RLIMIT_NPROC, limits.pids + (_tasks_of(uid) if uid != 0 else 0)),
         (resource.RLIMIT_CORE, 0),
     )
+    pinned = None if group is not None and "cpu" in group.controllers else cgroups.cpu_set(limits.cpus)
+    join = group.join if group is not None else None
     parent = os.getpid()
     libc = ctypes.CDLL(None, use_errno=True)  # loaded now: the forked child only calls it
 
     def preexec() -> None:  # pragma: no cover - runs between fork and exec
+        if join is not None:
+            join()
+        if pinned is not None:
+            os.sched_setaffinity(0, pinned)
         for which, value in settings:
             top = value + (1 if which == resource.RLIMIT_CPU else 0)
             hard = resource.getrlimit(which)[1]
@@ -424,6 +458,31 @@ def sandbox_unavailable(refresh: bool = False) -> str | None:
     if refresh:
         _probe.cache_clear()
     return _probe()[1]
+
+
+def caps_missing() -> str | None:
+    """``None`` when every cap of the sandbox holds here; otherwise ONE line naming what is not
+    capped on this host, why, and the fix (for the command line to print as a notice).
+
+    Without a memory cgroup, memory outside the address space (kernel memory: page tables, pipe
+    buffers, thread stacks) is bounded only indirectly, by the open-file and process limits.
+    Without a pids cgroup, ``RLIMIT_NPROC`` caps threads, except where bubblewrap runs as root (an
+    interpreter not readable by others, see ``sandbox_uid``): the kernel exempts uid 0. Without a
+    cpu cgroup the run is pinned to ``ceil(cpus)`` CPUs, which is a cap and is not reported.
+    """
+    found = cgroups.support()
+    uncapped = []
+    if "memory" in found.missing:
+        uncapped.append("kernel memory beyond the address-space limit (no memory cgroup)")
+    if "pids" in found.missing and os.geteuid() == 0 and sandbox_uid() is None:
+        uncapped.append("processes and threads (no pids cgroup, and RLIMIT_NPROC does not bind root)")
+    if not uncapped:
+        return None
+    return (
+        f"note: the submission sandbox does not cap {'; nor '.join(uncapped)} here ({found.reason}); "
+        "to cap them, run scftc as root or in a cgroup delegated to its user "
+        "(systemd-run --user --scope -p Delegate=yes)"
+    )
 
 
 def sandbox_uid() -> int | None:

@@ -32,6 +32,7 @@ import numpy as np
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.spec import get_spec
+from scftc_cli.submission.cgroups import RunGroup
 from scftc_cli.submission.isolation import (
     bwrap_argv,
     limit_child,
@@ -124,6 +125,10 @@ class Sandbox:
         self._err: int | None = None
         self._inbox = bytearray()
         self._output = bytearray()
+        self._step_output = 0  # bytes printed while answering the current request
+        self._total_output = 0
+        self._flood: str | None = None  # why the output was too much, once it was
+        self.group: RunGroup | None = None  # the run's cgroup, while it runs
         self._cpu_s = 0.0
         self._until_budget = float("inf")
         self.name = one_line(self.filename, 120)
@@ -174,6 +179,7 @@ class Sandbox:
             command=python_command(config),
         )
         try:
+            self.group = RunGroup.start(self.limits)
             self._proc = subprocess.Popen(
                 argv,
                 stdin=subprocess.DEVNULL,
@@ -182,8 +188,14 @@ class Sandbox:
                 env={"PATH": os.defpath},  # bubblewrap itself gets nothing of ours either
                 pass_fds=(p2c_r, c2p_w, source_fd, seccomp_fd, info_w),
                 start_new_session=True,
-                preexec_fn=limit_child(self.limits, sandbox_uid()),
+                preexec_fn=limit_child(self.limits, sandbox_uid(), self.group),
             )
+        except (PermissionError, subprocess.SubprocessError) as err:  # its cgroup, or the preexec_fn
+            _close(info_r)
+            raise SubmissionRejected(
+                f"{self.name}: the sandbox could not start (its cgroup, limits or user: {err}); "
+                "this is the host, not the file: check that scftc may still write its cgroups"
+            ) from err
         except BaseException:
             _close(info_r)
             raise
@@ -234,6 +246,9 @@ class Sandbox:
             self._to_child = self._from_child = self._err = None
             self._pidfds = []
             self._proc = None
+            if self.group is not None:
+                self.group.remove()
+                self.group = None
 
     # -- protocol --------------------------------------------------------------------------------
     def reset(self, context: Context, where: str) -> None:
@@ -362,12 +377,26 @@ class Sandbox:
             raise self._reject("the controller process broke the reply protocol (bad header)")
         return header
 
+    def _capped(self, detail: str = "") -> SubmissionRejected | None:
+        """The rejection for a run that ran into a cap of its cgroup (``None``: it did not)."""
+        hit = self.group.hit() if self.group is not None else None
+        if hit is None:
+            return None
+        detail = f": {detail}" if detail else ""
+        return SubmissionRejected(
+            f"{self.name}: {hit} ({self.phase}{detail}); a controller needs one thread and bounded "
+            f"memory: remove what starts threads or holds memory (see {GUIDE})"
+        )
+
     def _recv_ok(self, deadline: float, doing: str) -> dict[str, Any]:
         header = self._recv(deadline)
         if header.get("ok") is True:
             return header
         kind, error = str(header.get("kind")), one_line(str(header.get("error", "unknown error")))
         name = self.name
+        capped = self._capped(one_line(error, 120))
+        if capped is not None:
+            raise capped
         if kind == "import":
             raise SubmissionRejected(
                 f"{name}: failed to import: {error}; fix the import (the sandbox offers the standard "
@@ -411,6 +440,9 @@ class Sandbox:
         if code is None:
             self._kill()
             code = self._proc.returncode if self._proc is not None else None
+        capped = self._capped()
+        if capped is not None:
+            return capped
         if code in (128 + signal.SIGXCPU, 128 + signal.SIGKILL) and self._cpu_s >= self.limits.cpu_s - 0.5:
             return SubmissionRejected(
                 f"{self.name}: exceeded the CPU time limit of {self.limits.cpu_s} s ({self.phase}); "
