@@ -10,7 +10,7 @@ from dataclasses import dataclass
 class SandboxLimits:
     """Bounds on one submission's sandbox.
 
-    The wall-time bounds are enforced by the parent; the rest are kernel limits set on
+    The wall-time and output bounds are enforced by the parent; the rest are kernel limits set on
     the sandbox before it starts (soft = hard, so the submission cannot raise them), and caps of
     the run's cgroup (``cgroups``) where the host offers one.
 
@@ -32,6 +32,9 @@ class SandboxLimits:
             and scipy start none with the ``*_NUM_THREADS=1`` the sandbox sets.
         cpus: CPU bandwidth, in CPUs (cpu cgroup quota: ``cpus`` x 100 ms per 100 ms; affinity to
             ``ceil(cpus)`` CPUs where there is none).
+        step_output_kb: KiB the child may print (stdout and stderr) while answering one request
+            (the import, one ``reset`` or ``act``); the parent keeps only a tail for messages.
+        total_output_mb: MiB it may print over the whole run.
     """
 
     step_timeout_s: float = 10.0
@@ -43,3 +46,5 @@ class SandboxLimits:
     open_files: int = 256
     pids: int = 64
     cpus: float = 1.0
+    step_output_kb: int = 1024
+    total_output_mb: int = 64

@@ -1,13 +1,15 @@
 """Run a submitted controller in an isolated, bounded process that sees only observations.
 
 The parent (``Sandbox``, ``SandboxedController``) starts ``python -m scftc_cli.submission.child``
-under bubblewrap with a seccomp filter and rlimits (``isolation``): the child has its own
+under bubblewrap with a seccomp filter and rlimits (``isolation``), in a cgroup of its own
+(``cgroups``: processes and threads, memory, CPU) where the host offers one: the child has its own
 namespaces, a read-only view of the interpreter, system libraries, numpy, scipy and
-``scftc_cli``, a private size-limited ``/tmp``, no network, no other process in sight, and an
-environment built from scratch. The submitted bytes reach it through a memfd, its output comes
-back through a pipe into a bounded buffer, and nothing is written to disk: a ``kill -9`` of the
-parent at any moment leaves no folder behind, and bubblewrap's parent-death signal takes the
-sandbox down with it.
+``scftc_cli``, nothing writable, no network, no other process in sight, and an environment built
+from scratch. The submitted bytes reach it through a memfd, its output comes back through a pipe
+into a bounded buffer (and past ``SandboxLimits.step_output_kb`` in one step, or
+``total_output_mb`` in all, the submission is rejected), and nothing is written to disk: a
+``kill -9`` of the parent at any moment leaves no folder behind, bubblewrap's parent-death signal
+takes the sandbox down with it, and the next process removes the run's leftover cgroup.
 
 Per step the parent sends ``n`` and the ``(n, obs_dim)`` observations and reads back a small JSON
 header plus the raw command bytes. It never unpickles anything from the child, validates every
@@ -257,6 +259,7 @@ class Sandbox:
         self.action_dim = get_spec(context.benchmark_version).action_dim
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
         deadline = self._until(self.limits.step_timeout_s)
+        self._step_output = 0
         self._write(frame(request), deadline)
         self._recv_ok(deadline, self.phase)
 
@@ -265,6 +268,7 @@ class Sandbox:
         self.phase = f"act() on {where}"
         n, width, m = obs.shape[0], obs.shape[1], self.action_dim
         deadline = self._until(self.limits.step_timeout_s)
+        self._step_output = 0
         payload = np.ascontiguousarray(obs, dtype="<f8").tobytes()
         self._write(frame({"op": "act", "n": int(n), "width": int(width)}) + payload, deadline)
         header = self._recv_ok(deadline, self.phase)
@@ -299,8 +303,11 @@ class Sandbox:
         return SubmissionRejected(f"{self.name}: {reason} ({self.phase}); fix it (see {GUIDE})")
 
     def _pump(self) -> None:
-        """Move whatever the child printed into the bounded output buffer (never blocks)."""
-        while self._err is not None:
+        """Move whatever the child printed into the bounded output buffer (never blocks). Past
+        the per-step or total output bound it stops reading and records why (``_flood``): the
+        child then blocks on the full pipe until ``_wait`` rejects it."""
+        step_cap, total_cap = self.limits.step_output_kb << 10, self.limits.total_output_mb << 20
+        while self._err is not None and self._flood is None:
             try:
                 chunk = os.read(self._err, 65_536)
             except BlockingIOError:
@@ -313,6 +320,12 @@ class Sandbox:
                 return
             self._output += chunk
             del self._output[:-OUTPUT_BYTES]
+            self._step_output += len(chunk)
+            self._total_output += len(chunk)
+            if self._step_output > step_cap:
+                self._flood = f"printed more than {self.limits.step_output_kb} KiB in one step"
+            elif self._total_output > total_cap:
+                self._flood = f"printed more than {self.limits.total_output_mb} MiB in total"
 
     def _wait(self, fd: int, events: int, deadline: float) -> bool:
         """Wait until ``fd`` is ready for ``events``, draining the child's output meanwhile.
@@ -328,6 +341,9 @@ class Sandbox:
             ready = dict(poller.poll(max(1, int(remaining * 1000) + 1)))
             if self._err is not None and self._err in ready:
                 self._pump()
+            if self._flood is not None:
+                self._kill()
+                raise self._reject(f"{self._flood}; print less (output is kept only for error messages)")
             if fd in ready:
                 return True
 
