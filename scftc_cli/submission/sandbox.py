@@ -259,7 +259,7 @@ class Sandbox:
         self.action_dim = get_spec(context.benchmark_version).action_dim
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
         deadline = self._until(self.limits.step_timeout_s)
-        self._step_output = 0
+        self._new_step()
         self._write(frame(request), deadline)
         self._recv_ok(deadline, self.phase)
 
@@ -268,7 +268,7 @@ class Sandbox:
         self.phase = f"act() on {where}"
         n, width, m = obs.shape[0], obs.shape[1], self.action_dim
         deadline = self._until(self.limits.step_timeout_s)
-        self._step_output = 0
+        self._new_step()
         payload = np.ascontiguousarray(obs, dtype="<f8").tobytes()
         self._write(frame({"op": "act", "n": int(n), "width": int(width)}) + payload, deadline)
         header = self._recv_ok(deadline, self.phase)
@@ -327,6 +327,21 @@ class Sandbox:
             elif self._total_output > total_cap:
                 self._flood = f"printed more than {self.limits.total_output_mb} MiB in total"
 
+    def _refuse_flood(self) -> None:
+        if self._flood is not None:
+            self._kill()
+            raise SubmissionRejected(
+                f"{self.name}: {self._flood} ({self.phase}); print less: the output is kept only "
+                f"for error messages (see {GUIDE})"
+            )
+
+    def _new_step(self) -> None:
+        """Count the output of the request about to be sent from zero, once what the child printed
+        before it is read (a reply read at once, without waiting, leaves it in the pipe)."""
+        self._pump()
+        self._refuse_flood()
+        self._step_output = 0
+
     def _wait(self, fd: int, events: int, deadline: float) -> bool:
         """Wait until ``fd`` is ready for ``events``, draining the child's output meanwhile.
         ``False`` when ``deadline`` passes first."""
@@ -341,9 +356,7 @@ class Sandbox:
             ready = dict(poller.poll(max(1, int(remaining * 1000) + 1)))
             if self._err is not None and self._err in ready:
                 self._pump()
-            if self._flood is not None:
-                self._kill()
-                raise self._reject(f"{self._flood}; print less (output is kept only for error messages)")
+            self._refuse_flood()
             if fd in ready:
                 return True
 
