@@ -471,17 +471,22 @@ def caps_missing() -> str | None:
     cpu cgroup the run is pinned to ``ceil(cpus)`` CPUs, which is a cap and is not reported.
     """
     found = cgroups.support()
-    uncapped = []
+    uncapped, fixes = [], []
     if "memory" in found.missing:
-        uncapped.append("kernel memory beyond the address-space limit (no memory cgroup)")
+        uncapped.append("its kernel memory beyond the address-space limit (no memory cgroup)")
     if "pids" in found.missing and os.geteuid() == 0 and sandbox_uid() is None:
-        uncapped.append("processes and threads (no pids cgroup, and RLIMIT_NPROC does not bind root)")
+        uncapped.append("its processes and threads (no pids cgroup, and RLIMIT_NPROC does not bind root)")
+        fixes.append("make the interpreter readable by others, so that the sandbox runs as nobody")
     if not uncapped:
         return None
+    if os.geteuid() == 0:
+        fixes.insert(0, "mount the cgroup file system read-write for this process")
+    else:
+        delegated = "systemd-run --user --scope -p Delegate=yes scftc ..."
+        fixes.insert(0, f"run scftc as root or in a delegated cgroup ({delegated})")
     return (
-        f"note: the submission sandbox does not cap {'; nor '.join(uncapped)} here ({found.reason}); "
-        "to cap them, run scftc as root or in a cgroup delegated to its user "
-        "(systemd-run --user --scope -p Delegate=yes)"
+        f"note: the submission sandbox cannot cap {' nor '.join(uncapped)} on this host "
+        f"({found.reason}); to fix it, {', or '.join(fixes)}"
     )
 
 
