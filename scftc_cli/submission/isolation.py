@@ -41,7 +41,8 @@ for a capability (sysctl files under ``/proc/sys``, e.g. ``kernel.core_pattern``
 process is root and every mounted folder is readable by others, bubblewrap is started as nobody
 (``sandbox_uid``); otherwise (an interpreter under ``/root``, say; bubblewrap resolves mount
 sources as the user it runs as) it runs as root, and ``/proc`` is read-only so that no such file
-can be opened for writing. Nothing else writable by uid 0 is mounted.
+can be opened for writing. Nothing else writable by uid 0 is mounted. The kernel exempts uid 0
+from ``RLIMIT_NPROC`` as well: run as root, only the pids cgroup caps the run's threads.
 
 The seccomp deny list and why (x86-64 names; a name the running architecture lacks is skipped):
 
@@ -85,7 +86,8 @@ lease to the kernel, yet not equal to ``F_SETLEASE`` in 64 bits. So the ``fcntl`
 compare the low 32 bits only (``MASKED_EQ`` with mask ``0xffffffff``). The ``NE`` rules on ``int``
 arguments (``kill``/``tgkill`` PID, ``setpriority``, ``prlimit64`` PID) refuse whenever any of
 the 64 bits differs, a superset of what the kernel would see as different: high bits can only
-make them refuse more. ``clone``'s flags and ``prlimit64``'s pointer are 64-bit to the kernel too.
+make them refuse more. ``clone``'s rule tests one bit of the low 32 (the kernel reads the low 32
+bits of its flags too), and ``prlimit64``'s ``NE 0`` is on a 64-bit pointer.
 
 ``execve`` cannot be refused: bubblewrap loads the filter and then executes the interpreter.
 It is harmless: without ``fork`` a process can only replace itself, keeping its namespaces,
