@@ -2,7 +2,7 @@
 (``python -m scftc_cli.submission.child CONFIG``, started by ``sandbox.Sandbox``).
 
 By the time this runs, the kernel already confines it (``isolation``): its own namespaces, a
-read-only filesystem with a private ``/tmp``, a seccomp filter and rlimits. This module only
+read-only filesystem (nothing is writable), a seccomp filter, rlimits and a cgroup. This module only
 imports the allowed packages, executes the submitted file, builds the controller and answers
 the parent's ``reset`` and ``act`` frames (``wire``) until told to close.
 
@@ -32,7 +32,7 @@ from scftc_cli.submission.wire import (
     source_encoding_problem,
 )
 
-WRITABLE = ("/tmp", "/dev/null")  # the rest of the filesystem is read-only (or absent)
+WRITABLE = ("/dev/null",)  # the rest of the filesystem is read-only (or absent): a controller needs no disk
 # OSError numbers the sandbox answers with: a submission that hits one met the sandbox, not a bug
 DENIED_ERRNOS = frozenset({errno.EPERM, errno.EACCES, errno.EROFS, errno.ENOSYS})
 
@@ -128,12 +128,12 @@ def _reason(event: str, args: tuple[Any, ...]) -> str | None:
             isinstance(mode, str) and any(c in mode for c in "wax+")
         )
         if writes and path is not None and not isinstance(path, int) and not _writable(path):
-            return f"tried to open {one_line(os.fsdecode(path), 120)} for writing (only /tmp is writable)"
+            return f"tried to open {one_line(os.fsdecode(path), 120)} for writing (nothing is writable)"
         return None
     if event in _FS_EVENTS:
         paths = [a for a in args[:2] if isinstance(a, str | bytes | os.PathLike)]
         if any(not _writable(p) for p in paths):
-            return f"{event} outside /tmp, the only writable folder"
+            return f"{event} (nothing is writable)"
         return None
     if event in _PROCESS_EVENTS:
         own = event == "signal.pthread_kill" or (event.startswith("os.kill") and args[:1] == (os.getpid(),))

@@ -1,13 +1,15 @@
 """Run a submitted controller in an isolated, bounded process that sees only observations.
 
 The parent (``Sandbox``, ``SandboxedController``) starts ``python -m scftc_cli.submission.child``
-under bubblewrap with a seccomp filter and rlimits (``isolation``): the child has its own
+under bubblewrap with a seccomp filter and rlimits (``isolation``), in a cgroup of its own
+(``cgroups``: processes and threads, memory, CPU) where the host offers one: the child has its own
 namespaces, a read-only view of the interpreter, system libraries, numpy, scipy and
-``scftc_cli``, a private size-limited ``/tmp``, no network, no other process in sight, and an
-environment built from scratch. The submitted bytes reach it through a memfd, its output comes
-back through a pipe into a bounded buffer, and nothing is written to disk: a ``kill -9`` of the
-parent at any moment leaves no folder behind, and bubblewrap's parent-death signal takes the
-sandbox down with it.
+``scftc_cli``, nothing writable, no network, no other process in sight, and an environment built
+from scratch. The submitted bytes reach it through a memfd, its output comes back through a pipe
+into a bounded buffer (and past ``SandboxLimits.step_output_kb`` in one step, or
+``total_output_mb`` in all, the submission is rejected), and nothing is written to disk: a
+``kill -9`` of the parent at any moment leaves no folder behind, bubblewrap's parent-death signal
+takes the sandbox down with it, and the next process removes the run's leftover cgroup.
 
 Per step the parent sends ``n`` and the ``(n, obs_dim)`` observations and reads back a small JSON
 header plus the raw command bytes. It never unpickles anything from the child, validates every
@@ -32,6 +34,7 @@ import numpy as np
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.spec import get_spec
+from scftc_cli.submission.cgroups import RunGroup
 from scftc_cli.submission.isolation import (
     bwrap_argv,
     limit_child,
@@ -124,6 +127,10 @@ class Sandbox:
         self._err: int | None = None
         self._inbox = bytearray()
         self._output = bytearray()
+        self._step_output = 0  # bytes printed while answering the current request
+        self._total_output = 0
+        self._flood: str | None = None  # why the output was too much, once it was
+        self.group: RunGroup | None = None  # the run's cgroup, while it runs
         self._cpu_s = 0.0
         self._until_budget = float("inf")
         self.name = one_line(self.filename, 120)
@@ -171,10 +178,10 @@ class Sandbox:
             source_path=inside,
             seccomp_fd=seccomp_fd,
             info_fd=info_w,
-            tmp_mb=self.limits.tmp_mb,
             command=python_command(config),
         )
         try:
+            self.group = RunGroup.start(self.limits)
             self._proc = subprocess.Popen(
                 argv,
                 stdin=subprocess.DEVNULL,
@@ -183,8 +190,14 @@ class Sandbox:
                 env={"PATH": os.defpath},  # bubblewrap itself gets nothing of ours either
                 pass_fds=(p2c_r, c2p_w, source_fd, seccomp_fd, info_w),
                 start_new_session=True,
-                preexec_fn=limit_child(self.limits, sandbox_uid()),
+                preexec_fn=limit_child(self.limits, sandbox_uid(), self.group),
             )
+        except (PermissionError, subprocess.SubprocessError) as err:  # its cgroup, or the preexec_fn
+            _close(info_r)
+            raise SubmissionRejected(
+                f"{self.name}: the sandbox could not start (its cgroup, limits or user: {err}); "
+                "this is the host, not the file: check that scftc may still write its cgroups"
+            ) from err
         except BaseException:
             _close(info_r)
             raise
@@ -235,6 +248,9 @@ class Sandbox:
             self._to_child = self._from_child = self._err = None
             self._pidfds = []
             self._proc = None
+            if self.group is not None:
+                self.group.remove()
+                self.group = None
 
     # -- protocol --------------------------------------------------------------------------------
     def reset(self, context: Context, where: str) -> None:
@@ -243,6 +259,7 @@ class Sandbox:
         self.action_dim = get_spec(context.benchmark_version).action_dim
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
         deadline = self._until(self.limits.step_timeout_s)
+        self._new_step()
         self._write(frame(request), deadline)
         self._recv_ok(deadline, self.phase)
 
@@ -251,6 +268,7 @@ class Sandbox:
         self.phase = f"act() on {where}"
         n, width, m = obs.shape[0], obs.shape[1], self.action_dim
         deadline = self._until(self.limits.step_timeout_s)
+        self._new_step()
         payload = np.ascontiguousarray(obs, dtype="<f8").tobytes()
         self._write(frame({"op": "act", "n": int(n), "width": int(width)}) + payload, deadline)
         header = self._recv_ok(deadline, self.phase)
@@ -285,8 +303,11 @@ class Sandbox:
         return SubmissionRejected(f"{self.name}: {reason} ({self.phase}); fix it (see {GUIDE})")
 
     def _pump(self) -> None:
-        """Move whatever the child printed into the bounded output buffer (never blocks)."""
-        while self._err is not None:
+        """Move whatever the child printed into the bounded output buffer (never blocks). Past
+        the per-step or total output bound it stops reading and records why (``_flood``): the
+        child then blocks on the full pipe until ``_wait`` rejects it."""
+        step_cap, total_cap = self.limits.step_output_kb << 10, self.limits.total_output_mb << 20
+        while self._err is not None and self._flood is None:
             try:
                 chunk = os.read(self._err, 65_536)
             except BlockingIOError:
@@ -299,6 +320,27 @@ class Sandbox:
                 return
             self._output += chunk
             del self._output[:-OUTPUT_BYTES]
+            self._step_output += len(chunk)
+            self._total_output += len(chunk)
+            if self._step_output > step_cap:
+                self._flood = f"printed more than {self.limits.step_output_kb} KiB in one step"
+            elif self._total_output > total_cap:
+                self._flood = f"printed more than {self.limits.total_output_mb} MiB in total"
+
+    def _refuse_flood(self) -> None:
+        if self._flood is not None:
+            self._kill()
+            raise SubmissionRejected(
+                f"{self.name}: {self._flood} ({self.phase}); print less: the output is kept only "
+                f"for error messages (see {GUIDE})"
+            )
+
+    def _new_step(self) -> None:
+        """Count the output of the request about to be sent from zero, once what the child printed
+        before it is read (a reply read at once, without waiting, leaves it in the pipe)."""
+        self._pump()
+        self._refuse_flood()
+        self._step_output = 0
 
     def _wait(self, fd: int, events: int, deadline: float) -> bool:
         """Wait until ``fd`` is ready for ``events``, draining the child's output meanwhile.
@@ -314,6 +356,7 @@ class Sandbox:
             ready = dict(poller.poll(max(1, int(remaining * 1000) + 1)))
             if self._err is not None and self._err in ready:
                 self._pump()
+            self._refuse_flood()
             if fd in ready:
                 return True
 
@@ -363,12 +406,26 @@ class Sandbox:
             raise self._reject("the controller process broke the reply protocol (bad header)")
         return header
 
+    def _capped(self, detail: str = "") -> SubmissionRejected | None:
+        """The rejection for a run that ran into a cap of its cgroup (``None``: it did not)."""
+        hit = self.group.hit() if self.group is not None else None
+        if hit is None:
+            return None
+        detail = f": {detail}" if detail else ""
+        return SubmissionRejected(
+            f"{self.name}: {hit} ({self.phase}{detail}); a controller needs one thread and bounded "
+            f"memory: remove what starts threads or holds memory (see {GUIDE})"
+        )
+
     def _recv_ok(self, deadline: float, doing: str) -> dict[str, Any]:
         header = self._recv(deadline)
         if header.get("ok") is True:
             return header
         kind, error = str(header.get("kind")), one_line(str(header.get("error", "unknown error")))
         name = self.name
+        capped = self._capped(one_line(error, 120))
+        if capped is not None:
+            raise capped
         if kind == "import":
             raise SubmissionRejected(
                 f"{name}: failed to import: {error}; fix the import (the sandbox offers the standard "
@@ -412,6 +469,9 @@ class Sandbox:
         if code is None:
             self._kill()
             code = self._proc.returncode if self._proc is not None else None
+        capped = self._capped()
+        if capped is not None:
+            return capped
         if code in (128 + signal.SIGXCPU, 128 + signal.SIGKILL) and self._cpu_s >= self.limits.cpu_s - 0.5:
             return SubmissionRejected(
                 f"{self.name}: exceeded the CPU time limit of {self.limits.cpu_s} s ({self.phase}); "

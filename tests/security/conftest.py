@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import textwrap
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -137,16 +138,21 @@ def fly(
     at_import: str = "",
     between: object = None,
     name: str = "attacker.py",
+    limits: SandboxLimits | None = None,
+    during: Callable[[Sandbox], object] | None = None,
 ) -> Flight:
     """Fly the attacking submission for two steps. ``between`` (a callable) runs on the host
-    after the attacks, while the sandbox is still alive (e.g. to check a lock is free)."""
+    after the attacks, while the sandbox is still alive (e.g. to check a lock is free); so does
+    ``during``, given the running ``Sandbox`` (e.g. to read its cgroup)."""
     path = folder / name
     path.write_text(attacker_source(attacks, hook_off=hook_off, at_import=at_import))
-    with sandbox(path) as box:
+    with sandbox(path, limits) as box:
         box.reset(public_context(2), "attack")
         first = box.act(np.zeros((2, 6)), "attack")
         if callable(between):
             between()
+        if during is not None:
+            during(box)
         second = box.act(np.zeros((2, 6)), "attack")  # the controller keeps flying
         output = box.output()
     flight = Flight([first, second], output)
