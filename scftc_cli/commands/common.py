@@ -145,6 +145,15 @@ def note_line(message: str) -> None:
     stderr.print(f"note: {escape(terminal_safe(message))}", highlight=False, soft_wrap=True)
 
 
+def caps_notice() -> None:
+    """Where submissions will run sandboxed, say in one line which of the sandbox's caps this host
+    cannot enforce (none: nothing is printed)."""
+    from scftc_cli.submission.isolation import caps_missing, sandbox_unavailable
+
+    if sandbox_unavailable() is None and (missing := caps_missing()) is not None:
+        note_line(missing.removeprefix("note: "))
+
+
 def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Turn domain errors into one line on stderr and an exit code (2 usage, 1 anything else).
 

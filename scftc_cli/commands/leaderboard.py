@@ -22,6 +22,7 @@ from scftc_cli.commands.common import (
     BoardOption,
     SchedulerOption,
     WorkersOption,
+    caps_notice,
     exits_cleanly,
     progress_bar,
     stderr,
@@ -187,6 +188,8 @@ def verify_command(
     board = read_board(board_path, bench)
     trusted = read_board(base, bench) if base is not None else None
     scoring = Scoring(spec, limits=replace(SandboxLimits(), step_timeout_s=step_timeout))
+    if any(e.kind == "submission" for e in board.entries):
+        caps_notice()
     total = len(board.entries)
     done = {"i": 0}
     start = time.monotonic()
@@ -310,6 +313,8 @@ def seal_command(
     board = read_board(board_path, bench)
     target = board.closing_round or board.open_round
     pending = [e for e in board.entries if e.status == "pending" and target and e.round == target.number]
+    if any(e.kind == "submission" for e in pending):
+        caps_notice()
     total = sum(steps_per_entry(scoring, 1 if e.kind == "builtin" else 2) for e in pending)
     with (
         cluster(workers, scheduler) as runner,

@@ -9,7 +9,14 @@ from typing import Annotated
 
 import typer
 
-from scftc_cli.commands.common import DEFAULT, BenchmarkOption, BoardOption, exits_cleanly, progress_bar
+from scftc_cli.commands.common import (
+    DEFAULT,
+    BenchmarkOption,
+    BoardOption,
+    caps_notice,
+    exits_cleanly,
+    progress_bar,
+)
 from scftc_cli.submission.limits import SandboxLimits
 
 _LIMITS = SandboxLimits()
@@ -81,6 +88,7 @@ def submit_command(
         _LIMITS, step_timeout_s=step_timeout, total_wall_s=total_wall, cpu_s=cpu_s, memory_mb=memory_mb
     )
     scoring = Scoring(spec, n_faults, n_seeds, limits)
+    caps_notice()
     total = steps_per_entry(scoring, draws=1) + spec.steps  # the public draw and one cell again
     with progress_bar(f"{file.name} on {spec.version}", total) as progress:
         outcome = submit(file, board_path, replace(scoring, progress=progress), dry_run=dry_run)
