@@ -107,7 +107,8 @@ def evaluate_cell(
     """Fly the controller of ``make`` through one cell's pinned (or, with ``salt``, sealed)
     episodes and score it."""
     episodes = testbed(spec.version).draw(cell.split, cell.fault_class, cell.sensor, n_faults, n_seeds, salt)
-    outcomes = episode_outcomes(rollout(make(cell), episodes, backend=backend, progress=progress), spec.gates)
+    flown = rollout(make(cell), episodes, backend=backend, progress=progress)
+    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index)
     result = score_cell(outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence)
     return CellRun(cell, result, outcomes, episodes)
 

@@ -11,16 +11,65 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    model_serializer,
+    model_validator,
+)
+
+BY_FAULT_FIELDS = ("by_fault", "interval_by_fault", "design_effect")
 
 
 class GateStat(BaseModel):
-    """Episodes passing one gate: ``k`` of the cell's ``n``, the rate and its Wilson interval."""
+    """Episodes passing one gate: ``k`` of the cell's ``n``, the rate and its Wilson interval; and,
+    where the cell's fault of each episode is known, the counts per fault with the by-fault
+    interval and design effect computed from them (``scftc_cli/statistics.py``; docs/statistics.md).
+
+    A record without per-fault counts (one written before they existed, or a cell that is not a
+    whole faults x seeds design) has the three by-fault fields ``None`` and serializes without
+    them, exactly as before.
+    """
 
     k: int = Field(ge=0)
     rate: float = Field(ge=0, le=1)
     ci_low: float = Field(ge=0, le=1)
     ci_high: float = Field(ge=0, le=1)
+    by_fault: list[int] | None = Field(
+        default=None,
+        description="Passing episodes of each fault, in fault order; each fault holds n / len(by_fault) "
+        "episodes (its initial conditions). What interval_by_fault and design_effect are computed from.",
+    )
+    interval_by_fault: tuple[float, float] | None = Field(
+        default=None,
+        description="By-fault 95 % interval [low, high] of the rate: the percentile interval of the exact "
+        "cluster bootstrap over faults; at k = 0 or k = n the Wilson interval of 0 or all of the faults.",
+    )
+    design_effect: float | None = Field(
+        default=None,
+        description="Variance of the rate under fault clustering over the binomial p (1 - p) / n; null "
+        "when k = 0 or k = n.",
+    )
+
+    @model_validator(mode="after")
+    def _counts_add_up(self) -> GateStat:
+        if self.by_fault is not None and (sum(self.by_fault) != self.k or min(self.by_fault, default=0) < 0):
+            raise ValueError(f"by_fault {self.by_fault} does not add up to k = {self.k}")
+        if self.interval_by_fault is not None:
+            low, high = self.interval_by_fault
+            if not 0 <= low <= high <= 1:
+                raise ValueError(f"interval_by_fault {self.interval_by_fault} is not inside [0, 1]")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _omit_absent_by_fault(self, handler: SerializerFunctionWrapHandler) -> dict:
+        data = handler(self)
+        if all(getattr(self, name) is None for name in BY_FAULT_FIELDS):
+            for name in BY_FAULT_FIELDS:
+                data.pop(name, None)
+        return data
 
 
 class FinalError(BaseModel):
@@ -83,13 +132,17 @@ class EvalResult(BaseModel):
 @dataclass(frozen=True)
 class EpisodeOutcomes:
     """Per-episode outcomes of a batch, all ``(n,)``: the three gates (bool), the final true
-    pointing error (deg) and the settling time (s; NaN where not settled at the end)."""
+    pointing error (deg), the settling time (s; NaN where not settled at the end), the largest
+    error over the final dwell window (deg: the settled gate at any threshold), and each episode's
+    fault within its cell (int; ``None`` where unknown), which the by-fault statistics group by."""
 
     settled: np.ndarray
     operational: np.ndarray
     touch_once: np.ndarray
     final_error_deg: np.ndarray
     settling_time_s: np.ndarray
+    dwell_max_error_deg: np.ndarray
+    fault_index: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -97,8 +150,14 @@ class EpisodeOutcomes:
 
     @classmethod
     def concat(cls, parts: list[EpisodeOutcomes]) -> EpisodeOutcomes:
-        """The outcomes of consecutive slices of one batch, in order."""
-        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)})
+        """The outcomes of consecutive slices of one batch, in order (``fault_index`` only where
+        every part knows it)."""
+
+        joined: dict = {}
+        for f in fields(cls):
+            values = [getattr(p, f.name) for p in parts]
+            joined[f.name] = None if any(v is None for v in values) else np.concatenate(values)
+        return cls(**joined)
 
 
 LIBRARIES = ("numpy", "numba", "scipy", "pydantic", "torch", "bsk", "gymnasium")

@@ -21,6 +21,19 @@ def pct(stat: GateStat) -> str:
     return f"{100 * stat.rate:.1f} [{100 * stat.ci_low:.1f}, {100 * stat.ci_high:.1f}]"
 
 
+def pct_by_fault(stat: GateStat) -> str:
+    """``[3.0, 16.8]``: the by-fault 95 % interval in percent; ``-`` where the record has none."""
+    if stat.interval_by_fault is None:
+        return "-"
+    low, high = stat.interval_by_fault
+    return f"[{100 * low:.1f}, {100 * high:.1f}]"
+
+
+def deff_text(stat: GateStat) -> str:
+    """The design effect to one decimal; ``-`` where undefined (k = 0 or n) or absent."""
+    return "-" if stat.design_effect is None else f"{stat.design_effect:.1f}"
+
+
 def markdown_lines(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     """A markdown table as lines (header, rule, rows)."""
     lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
@@ -37,7 +50,9 @@ HEADERS = (
     "class",
     "sensor",
     "settled k/n",
-    "settled % [95% CI]",
+    "settled % [Wilson]",
+    "by-fault CI",
+    "deff",
     "operational %",
     "touch-once %",
     "final err deg (median / mean)",
@@ -50,7 +65,10 @@ def _cell_row(cell: CellResult) -> list[str]:
         cell.fault_class,
         cell.sensor or "-",
         f"{cell.settled.k}/{cell.n}",
-        *(pct(getattr(cell, gate)) for gate in GATES),
+        pct(cell.settled),
+        pct_by_fault(cell.settled),
+        deff_text(cell.settled),
+        *(pct(getattr(cell, gate)) for gate in GATES if gate != "settled"),
         f"{cell.final_error_deg.median:.3g} / {cell.final_error_deg.mean:.3g}",
     ]
 
@@ -60,7 +78,10 @@ def eval_table(result: EvalResult) -> Table:
     from rich.table import Table
 
     flag = " (privileged: an upper bound, not ranked)" if result.privileged else ""
-    table = Table(title=f"{result.controller}{flag} - {result.benchmark_version}, {result.backend}")
+    table = Table(
+        title=f"{result.controller}{flag} - {result.benchmark_version}, {result.backend}",
+        caption=INTERVALS_NOTE,
+    )
     for h in HEADERS:
         table.add_column(h, justify="left" if h in ("split", "class", "sensor") else "right")
     for cell in result.cells:
@@ -68,10 +89,17 @@ def eval_table(result: EvalResult) -> Table:
     return table
 
 
+INTERVALS_NOTE = (
+    "Settled: Wilson 95 % interval (episodes as independent trials) and the by-fault 95 % interval "
+    "(whole faults resampled; wider where outcomes cluster by fault); deff: the design effect, the "
+    "variance under fault clustering over the binomial one (docs/statistics.md)."
+)
+
+
 def eval_markdown(result: EvalResult) -> str:
     flag = " (privileged)" if result.privileged else ""
     title = f"**{result.controller}**{flag} — {result.benchmark_version}, backend {result.backend}\n\n"
-    return title + markdown_table(HEADERS, [_cell_row(c) for c in result.cells])
+    return title + markdown_table(HEADERS, [_cell_row(c) for c in result.cells]) + f"\n{INTERVALS_NOTE}\n"
 
 
 def print_table(table: Table) -> None:

@@ -1,6 +1,8 @@
 """Gates and statistics: pure functions over arrays, thresholds passed in (from ``spec.gates``).
 
 The gates read the *true* pointing error; ``error_deg`` is ``(n, steps)`` for steps 1..steps.
+Where the fault of each episode is known, a gate's record also carries its counts per fault and
+the by-fault interval and design effect of ``scftc_cli/statistics.py``.
 
 The Wilson interval is computed in closed form (Wilson 1927) rather than through
 ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``, whose import alone costs ~0.7 s of
@@ -18,6 +20,7 @@ import numpy as np
 from scftc_cli.records import CellResult, EpisodeOutcomes, FinalError, GateStat
 from scftc_cli.sim.rollout import Rollout
 from scftc_cli.spec import GATES, GateSpec
+from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts
 
 
 def settled(error_deg: np.ndarray, threshold_deg: float, dwell_steps: int) -> np.ndarray:
@@ -62,33 +65,54 @@ def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, fl
     return (0.0 if k == 0 else center - delta), (1.0 if k == n else center + delta)
 
 
-def gate_stat(passed: np.ndarray, confidence: float = 0.95) -> GateStat:
-    """Summarize ``(n,)`` bool outcomes as k, rate and Wilson interval."""
+def gate_stat(
+    passed: np.ndarray, confidence: float = 0.95, fault_index: np.ndarray | None = None
+) -> GateStat:
+    """Summarize ``(n,)`` bool outcomes as k, rate and Wilson interval; with ``fault_index``
+    (``(n,)`` int, each episode's fault; every fault holding the same number of episodes) also the
+    passing episodes per fault, the by-fault interval and the design effect."""
     k, n = int(np.count_nonzero(passed)), int(passed.size)
     low, high = wilson_interval(k, n, confidence)
-    return GateStat(k=k, rate=k / n, ci_low=low, ci_high=high)
+    if fault_index is None:
+        return GateStat(k=k, rate=k / n, ci_low=low, ci_high=high)
+    counts, seeds = per_fault_counts(passed, fault_index)
+    return GateStat(
+        k=k,
+        rate=k / n,
+        ci_low=low,
+        ci_high=high,
+        by_fault=counts.tolist(),
+        interval_by_fault=interval_by_fault(counts, seeds, confidence=confidence),
+        design_effect=design_effect(counts, seeds),
+    )
 
 
-def episode_outcomes(rollout: Rollout, gates: GateSpec) -> EpisodeOutcomes:
-    """Per-episode gate outcomes and errors of a rollout (what a paired comparison needs)."""
+def episode_outcomes(
+    rollout: Rollout, gates: GateSpec, fault_index: np.ndarray | None = None
+) -> EpisodeOutcomes:
+    """Per-episode gate outcomes and errors of a rollout (what a paired comparison needs), with
+    each episode's fault (``Episodes.fault_index``) where given."""
     outcomes = gate_outcomes(rollout, gates)
     return EpisodeOutcomes(
         **{gate: outcomes[gate] for gate in GATES},
         final_error_deg=rollout.final_error_deg,
         settling_time_s=rollout.settling_time_s,
+        dwell_max_error_deg=rollout.dwell_max_error_deg,
+        fault_index=None if fault_index is None else np.asarray(fault_index),
     )
 
 
 def score_cell(
     outcomes: EpisodeOutcomes, split: str, fault_class: str, sensor: str | None, confidence: float = 0.95
 ) -> CellResult:
-    """The scored cell of a batch's per-episode outcomes."""
+    """The scored cell of a batch's per-episode outcomes (with the by-fault statistics where the
+    outcomes know each episode's fault)."""
     return CellResult(
         split=split,
         fault_class=fault_class,
         sensor=sensor,
         n=outcomes.n,
-        **{gate: gate_stat(getattr(outcomes, gate), confidence) for gate in GATES},
+        **{gate: gate_stat(getattr(outcomes, gate), confidence, outcomes.fault_index) for gate in GATES},
         final_error_deg=FinalError(
             median=float(np.median(outcomes.final_error_deg)),
             mean=float(np.mean(outcomes.final_error_deg)),

@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 PACKAGE = Path(__file__).resolve().parents[1] / "scftc_cli"
-LOW = ("sim", "protocol", "scoring", "records", "spec", "errors")
+LOW = ("sim", "protocol", "scoring", "statistics", "records", "spec", "errors")
 HIGH = ("baselines", "board", "submission", "study", "training", "commands", "envs", "registry", "evaluate")
 
 

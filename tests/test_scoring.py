@@ -19,6 +19,7 @@ from scftc_cli.scoring import (
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.v1 import TESTBED
 from scftc_cli.spec import V1
+from scftc_cli.statistics import design_effect, interval_by_fault
 
 STEPS = 400
 GATES = V1.gates
@@ -105,3 +106,20 @@ def test_wilson_interval_refuses_impossible_counts():
 def test_gate_stat_counts():
     stat = gate_stat(np.array([True, False, True, True]))
     assert (stat.k, stat.rate) == (3, 0.75) and stat.ci_low < 0.75 < stat.ci_high
+
+
+def test_gate_stat_carries_recomputable_by_fault_numbers():
+    passed = np.array([1, 1, 1, 1, 0, 0, 0, 0, 1, 0], dtype=bool)
+    fault_index = np.repeat(np.arange(5), 2)
+    stat = gate_stat(passed, fault_index=fault_index)
+    assert stat.by_fault == [2, 2, 0, 0, 1] and sum(stat.by_fault) == stat.k == 5
+    assert stat.interval_by_fault == interval_by_fault([2, 2, 0, 0, 1], 2)
+    assert stat.design_effect == pytest.approx(design_effect([2, 2, 0, 0, 1], 2))
+    plain = gate_stat(passed)  # no fault index: exactly the record as before, nothing added
+    assert (stat.k, stat.rate, stat.ci_low, stat.ci_high) == (
+        plain.k,
+        plain.rate,
+        plain.ci_low,
+        plain.ci_high,
+    )
+    assert plain.by_fault is None and set(plain.model_dump()) == {"k", "rate", "ci_low", "ci_high"}

@@ -1,4 +1,4 @@
-"""``scftc compare``: two controllers on the same episodes, with exact paired tests."""
+"""``scftc compare``: two controllers on the same episodes, exact paired tests by episode and by fault."""
 
 from __future__ import annotations
 
@@ -43,7 +43,11 @@ def compare_command(
     """Fly A and B through the same pinned episodes and compare them pair by pair.
 
     Per cell: how many episodes each settles, how many only A settles and only B settles (the
-    discordant pairs), the exact McNemar p-value and its Holm adjustment over the cells shown.
+    discordant pairs), the exact McNemar p-value and its Holm adjustment over the cells shown; then
+    the faults on which each settles more episodes, and the by-fault p-value (exact sign-flip test
+    on the per-fault differences, the fault as the unit) with its Holm adjustment. McNemar treats
+    the episodes as independent; an episode's outcome depends mostly on its fault, so where the two
+    disagree the by-fault p-value is the one to report (docs/statistics.md).
     """
     from pathlib import Path
 
@@ -77,11 +81,24 @@ def compare_command(
         f"{result.b} settled",
         f"only {result.a}",
         f"only {result.b}",
+        "p (McNemar)",
+        "p (Holm)",
+        "faults ahead (A / B)",
+        "p by fault",
+        "p by fault (Holm)",
     ]
-    headers += ["p (exact McNemar)", "p (Holm)"]
+
+    def p_text(p: float | None) -> str:
+        return "-" if p is None else f"{p:.3g}"
+
     rows = [
         [c.cell, str(c.n), str(c.a_settled), str(c.b_settled), str(c.a_only), str(c.b_only)]
         + [f"{c.p_value:.3g}", f"{c.p_holm:.3g}"]
+        + [
+            "-" if c.faults is None else f"{c.a_ahead_faults} / {c.b_ahead_faults} of {c.faults}",
+            p_text(c.p_value_by_fault),
+            p_text(c.p_holm_by_fault),
+        ]
         for c in result.cells
     ]
     title = f"{result.a} vs {result.b} on the same {spec.version} {split} episodes ({result.test})"

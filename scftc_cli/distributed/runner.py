@@ -68,7 +68,8 @@ def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
     )
     make, cleanup = task.ref.factory()
     try:
-        return episode_outcomes(rollout(make(), episodes, backend=task.backend), bed.spec.gates)
+        flown = rollout(make(), episodes, backend=task.backend)
+        return episode_outcomes(flown, bed.spec.gates, episodes.fault_index)
     finally:
         cleanup()
 

@@ -19,10 +19,20 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from scftc_cli.records import EvalResult, GateStat
+from scftc_cli.records import EpisodeOutcomes, EvalResult, GateStat
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.study.run import Detection, Study, Trajectory, actuator_outcomes, has_onset, sensor_bias_deg
+from scftc_cli.statistics import PROFILE_TAUS_DEG, performance_profile
+from scftc_cli.study.run import (
+    Detection,
+    Study,
+    Trajectory,
+    actuator_outcomes,
+    cell_outcomes,
+    has_onset,
+    outcome_columns,
+    sensor_bias_deg,
+)
 
 DPI = 150
 PAD_INCHES = 0.1  # around the tight bounding box, as savefig's default
@@ -553,6 +563,144 @@ def fdir_detection(detections: Sequence[Detection], colors: dict[str, tuple] | N
     return fig
 
 
+def _panel_grid(columns: list[str], width: float = 4.6, height: float = 3.3) -> tuple[Figure, np.ndarray]:
+    """A grid of panels, one per class (three across), the unused ones hidden."""
+    across = min(3, len(columns))
+    rows = -(-len(columns) // across)
+    fig, axes = plt.subplots(
+        rows,
+        across,
+        figsize=(width * across + 2.6, height * rows + 1.0),
+        sharex=True,
+        sharey=True,
+        squeeze=False,
+    )
+    for ax in axes.flat[len(columns) :]:
+        ax.set_visible(False)
+    return fig, axes
+
+
+def _line_style(privileged: bool) -> dict:
+    return {"linestyle": "--", "linewidth": 1.5} if privileged else {"linestyle": "-", "linewidth": 1.3}
+
+
+def final_error_profile(
+    spec: BenchmarkSpec,
+    outcomes: Mapping[str, Mapping[str, EpisodeOutcomes]],
+    columns: Sequence[str],
+    privileged: Mapping[str, bool],
+    colors: dict[str, tuple] | None = None,
+) -> Figure:
+    """Per class (panels), the performance profile of the final pointing error: the fraction of
+    the cell's episodes whose final true error is <= tau, against tau on a log scale from 0.01 to
+    180 deg (``statistics.performance_profile`` on ``PROFILE_TAUS_DEG`` refined); the settled and
+    operational thresholds marked.
+
+    Args:
+        outcomes: controller -> column (class or sensor fault) -> per-episode outcomes
+            (``study.run.cell_outcomes``).
+    """
+    colors = colors or _colors(list(outcomes))
+    taus = np.geomspace(PROFILE_TAUS_DEG[0], PROFILE_TAUS_DEG[-1], 200)
+    fig, axes = _panel_grid(list(columns))
+    for ax, column in zip(axes.flat, columns, strict=False):
+        for name, cells in outcomes.items():
+            if column in cells:
+                ax.plot(
+                    taus,
+                    100 * performance_profile(cells[column].final_error_deg, taus),
+                    color=colors[name],
+                    label=_label(name, privileged.get(name, False)),
+                    **_line_style(privileged.get(name, False)),
+                )
+        ax.axvline(spec.gates.settled_deg, color="red", linestyle=":", linewidth=1.0)
+        ax.axvline(spec.gates.operational_deg, color="grey", linestyle=":", linewidth=1.0)
+        ax.set_xscale("log")
+        ax.set_xlim(taus[0], taus[-1])
+        ax.set_ylim(-2, 102)
+        ax.set_title(column, fontsize=10)
+        ax.grid(alpha=0.3, which="both", linewidth=0.4)
+    for ax in axes[-1]:
+        ax.set_xlabel("tau (deg, log)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("episodes with final error <= tau (%)")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    handles += [
+        plt.Line2D([], [], color="red", linestyle=":", label=f"settled gate {spec.gates.settled_deg:g} deg"),
+        plt.Line2D(
+            [], [], color="grey", linestyle=":", label=f"operational gate {spec.gates.operational_deg:g} deg"
+        ),
+    ]
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 0.95), fontsize=8, title="controller")
+    fig.suptitle(
+        "Performance profile of the final true pointing error, held-out split (dashed: privileged oracle)",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    return fig
+
+
+def settling_time(
+    spec: BenchmarkSpec,
+    outcomes: Mapping[str, Mapping[str, EpisodeOutcomes]],
+    columns: Sequence[str],
+    privileged: Mapping[str, bool],
+    colors: dict[str, tuple] | None = None,
+) -> Figure:
+    """Per class (panels), the empirical distribution of the settling time: the fraction of the
+    cell's episodes settled (within the settled tolerance from then to the end) by time t. A curve
+    tops out at the share of episodes whose last sample is within; an episode that never gets
+    there never counts. The final dwell window shaded; on a version with mid-flight faults the
+    held-out onset range too."""
+    colors = colors or _colors(list(outcomes))
+    end_s = spec.steps * spec.dt_s
+    dwell_s = spec.gates.dwell_steps * spec.dt_s
+    fig, axes = _panel_grid(list(columns))
+    onset = getattr(spec.splits["test"], "onset_s", None)
+    for ax, column in zip(axes.flat, columns, strict=False):
+        ax.axvspan(end_s - dwell_s, end_s, color="gold", alpha=0.25, linewidth=0)
+        if onset is not None:
+            parts = onset.parts
+            ax.axvspan(
+                min(p.lo for p in parts), max(p.hi for p in parts), color="grey", alpha=0.12, linewidth=0
+            )
+        for name, cells in outcomes.items():
+            if column not in cells:
+                continue
+            times = cells[column].settling_time_s
+            done = np.sort(times[np.isfinite(times)])
+            x = np.concatenate([[0.0], done, [end_s]])
+            y = np.concatenate([[0.0], np.arange(1, done.size + 1), [done.size]]) / times.size
+            ax.step(
+                x,
+                100 * y,
+                where="post",
+                color=colors[name],
+                label=_label(name, privileged.get(name, False)),
+                **_line_style(privileged.get(name, False)),
+            )
+        ax.set_xlim(0, end_s)
+        ax.set_ylim(-2, 102)
+        ax.set_title(column, fontsize=10)
+        ax.grid(alpha=0.3, linewidth=0.4)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel(f"settled within {spec.gates.settled_deg:g} deg by t (%)")
+    handles, _ = axes.flat[0].get_legend_handles_labels()
+    handles.append(Patch(facecolor="gold", alpha=0.25, label=f"final {dwell_s:g} s dwell window"))
+    if onset is not None:
+        handles.append(Patch(facecolor="grey", alpha=0.12, label="held-out fault onsets"))
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 0.95), fontsize=8, title="controller")
+    fig.suptitle(
+        "Settling time: episodes within the settled tolerance from t to the end, held-out split "
+        "(dashed: privileged oracle)",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    return fig
+
+
 def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``stem.png`` and ``stem.svg`` and close it."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -566,7 +714,15 @@ def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     return paths
 
 
-FIGURES = ("battery_settled", "bias_wall", "settled_vs_touch", "trajectories", "sensor_faults")
+FIGURES = (
+    "battery_settled",
+    "bias_wall",
+    "settled_vs_touch",
+    "trajectories",
+    "sensor_faults",
+    "final_error_profile",
+    "settling_time",
+)
 
 
 def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
@@ -582,7 +738,8 @@ def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
 
 
 def write_figures(study: Study, out_dir: Path) -> list[Path]:
-    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES``, then on a version with
+    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES`` (the last two over every
+    controller and class the battery and sensor table flew), then on a version with
     mid-flight onsets ``settled_vs_onset`` and, where ``fdir``'s detector was measured,
     ``fdir_detection``."""
     battery = study.battery.results
@@ -597,8 +754,11 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
             study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
         ),
     }
+    privileged = {r.controller: r.privileged for r in battery}
+    outcomes, columns = cell_outcomes(study), outcome_columns(study)
+    figures["final_error_profile"] = final_error_profile(study.spec, outcomes, columns, privileged, colors)
+    figures["settling_time"] = settling_time(study.spec, outcomes, columns, privileged, colors)
     if has_onset(study.spec):
-        privileged = {r.controller: r.privileged for r in battery}
         figures["settled_vs_onset"] = settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)
     if study.detection:
         figures["fdir_detection"] = fdir_detection(study.detection)

@@ -22,7 +22,7 @@ from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, select_cells
 from scftc_cli.protocol import NO_PROGRESS, Progress
-from scftc_cli.records import EvalResult, collect_provenance
+from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
 from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import rollout
@@ -208,6 +208,25 @@ def actuator_outcomes(
                 settled.append(run.outcomes.settled)
         out[r.controller] = (np.concatenate(values), np.concatenate(settled))
     return out
+
+
+def cell_outcomes(study: Study) -> dict[str, dict[str, EpisodeOutcomes]]:
+    """controller -> column -> its per-episode outcomes, controllers in battery order; a column is
+    an actuator class, or a sensor fault for a sensor cell (on ``scftc-v1`` only the controllers of
+    the sensor table fly those)."""
+    return {
+        r.controller: {
+            run.cell.sensor or run.cell.fault_class: run.outcomes for run in study.runs[r.controller]
+        }
+        for r in study.battery.results
+    }
+
+
+def outcome_columns(study: Study) -> list[str]:
+    """The columns of ``cell_outcomes`` that some controller flew: the actuator classes, then the
+    sensor faults."""
+    flown = {column for cells in cell_outcomes(study).values() for column in cells}
+    return [c for c in (*study.spec.fault_classes, *study.spec.sensor_faults) if c in flown]
 
 
 def has_onset(spec: BenchmarkSpec) -> bool:

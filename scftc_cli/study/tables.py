@@ -1,19 +1,40 @@
 """The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records,
 ``settled_by_hub.md`` (the settled rate on each part of the held-out hub-inertia range), and
-``fdir_detection.md`` where the study measured ``fdir``'s wheel detector (``scftc-v2``)."""
+``fdir_detection.md`` where the study measured ``fdir``'s wheel detector (``scftc-v2``); then
+more than a pass/fail count from the per-episode outcomes: ``gate_sensitivity.md`` (the settled
+rate had the gate been 0.1, 0.2, 0.5 or 1 deg), ``final_error_profile.md`` (the performance
+profile of the final pointing error), ``settling_time.md`` and ``distributions.json`` (the
+profiles on the 40-point grid a board would store, the gate counts and settling-time quantiles
+of every cell)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import json
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
 from pydantic import BaseModel
 
-from scftc_cli.records import CellResult, EvalResult
-from scftc_cli.render import markdown_table, pct
+from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
+from scftc_cli.render import deff_text, markdown_table, pct, pct_by_fault
 from scftc_cli.scoring import gate_stat
 from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
-from scftc_cli.study.run import Detection, Study, actuator_outcomes
+from scftc_cli.statistics import (
+    PROFILE_TAUS_DEG,
+    SENSITIVITY_GATES_DEG,
+    performance_profile,
+    profile_counts,
+    settled_at,
+)
+from scftc_cli.study.run import (
+    Detection,
+    Study,
+    actuator_outcomes,
+    cell_outcomes,
+    has_onset,
+    outcome_columns,
+)
 
 
 def _label(result: EvalResult) -> str:
@@ -27,6 +48,16 @@ def _cells_by_class(result: EvalResult) -> dict[str, CellResult]:
 
 def _regenerate(version: str) -> str:
     return "scftc reproduce" if version == DEFAULT_BENCHMARK else f"scftc reproduce --benchmark {version}"
+
+
+BY_FAULT_NOTE = (
+    "A cell's episodes are its faults x initial conditions, and whether an episode settles depends "
+    "mostly on its fault; the Wilson interval above treats the episodes as independent. The by-fault "
+    "interval resamples whole faults (exact cluster bootstrap, percentile, never narrower than Wilson; at "
+    "0 or 100 % the Wilson interval over the faults alone, the worst case of all-or-nothing faults). The "
+    "design effect is the variance of the settled rate under fault clustering over the binomial one: "
+    "the cell is worth n / design effect independent episodes (docs/statistics.md).\n\n"
+)
 
 
 def battery_markdown(study: Study) -> str:
@@ -59,6 +90,21 @@ def battery_markdown(study: Study) -> str:
         by_class = _cells_by_class(result)
         rows.append([_label(result), *(pct(by_class[c].settled) if c in by_class else "-" for c in classes)])
     summary = markdown_table(["controller", *classes], rows)
+    by_fault_rows = []
+    for result in report.results:
+        by_class = _cells_by_class(result)
+        by_fault_rows.append(
+            [
+                _label(result),
+                *(
+                    f"{pct_by_fault(by_class[c].settled)} ({deff_text(by_class[c].settled)})"
+                    if c in by_class
+                    else "-"
+                    for c in classes
+                ),
+            ]
+        )
+    by_fault = markdown_table(["controller", *classes], by_fault_rows)
     detail_rows = []
     for result in report.results:
         for cell in result.cells:
@@ -68,6 +114,8 @@ def battery_markdown(study: Study) -> str:
                     cell.fault_class if cell.sensor is None else f"{cell.fault_class} + {cell.sensor}",
                     f"{cell.settled.k}/{cell.n}",
                     pct(cell.settled),
+                    pct_by_fault(cell.settled),
+                    deff_text(cell.settled),
                     pct(cell.operational),
                     pct(cell.touch_once),
                     f"{cell.final_error_deg.median:.3g} / {cell.final_error_deg.mean:.3g}",
@@ -78,7 +126,9 @@ def battery_markdown(study: Study) -> str:
             "controller",
             "class",
             "settled k/n",
-            "settled %",
+            "settled % [Wilson]",
+            "settled by fault",
+            "design effect",
             "operational %",
             "touch-once %",
             "final error deg (median / mean)",
@@ -88,6 +138,9 @@ def battery_markdown(study: Study) -> str:
     return (
         head
         + summary
+        + "\n## Settled rate by fault: 95 % interval, % (design effect)\n\n"
+        + BY_FAULT_NOTE
+        + by_fault
         + "\n## Every cell: touching the tolerance vs holding it\n\n"
         + "The gap between touch-once and settled is the share of episodes that passed through the "
         "tolerance and did not stay.\n\n" + detail
@@ -212,14 +265,166 @@ def hub_markdown(study: Study) -> str:
     return head + markdown_table(headers, rows)
 
 
+PROFILE_TABLE_TAUS_DEG = (0.05, 0.1, 0.2, 0.5, 1.0, 5.0, 30.0, 90.0)
+"""Thresholds (deg) shown in ``final_error_profile.md``; the figure and the JSON use the full grid."""
+
+
+def _outcome_head(study: Study, title: str, text: str, figure: str | None = None) -> str:
+    n = study.battery.n_faults * study.battery.n_seeds
+    shown = f"Figure: `{figure}.png` / `{figure}.svg`. " if figure else ""
+    return (
+        f"# {title} ({study.spec.version}, held-out split)\n\n"
+        f"n = {n} episodes per cell, scored on the true state. {text}\n\n"
+        f"{shown}Regenerate with `{_regenerate(study.spec.version)}`.\n\n"
+    )
+
+
+def _privileged(study: Study) -> dict[str, bool]:
+    return {r.controller: r.privileged for r in study.battery.results}
+
+
+def _name(study: Study, controller: str) -> str:
+    return f"{controller} (privileged)" if _privileged(study)[controller] else controller
+
+
+def _per_column(study: Study, headers: list[str], row: Callable[[EpisodeOutcomes], list[str]]) -> str:
+    """One markdown table per column (class or sensor fault): a row per controller that flew it."""
+    outcomes = cell_outcomes(study)
+    parts = []
+    for column in outcome_columns(study):
+        rows = [
+            [_name(study, name), *row(cells[column])] for name, cells in outcomes.items() if column in cells
+        ]
+        parts.append(f"## {column}\n\n" + markdown_table(["controller", *headers], rows))
+    return "\n".join(parts)
+
+
+def gate_sensitivity_markdown(study: Study) -> str:
+    """The settled rate (%) of every controller and class had the settled gate been each of
+    ``SENSITIVITY_GATES_DEG`` (the dwell window unchanged), from each episode's largest error over
+    the final window. The benchmark's own gate reproduces the battery's settled counts."""
+    gates = study.spec.gates
+    head = _outcome_head(
+        study,
+        "Settled rate at other gates",
+        f"Settled at a gate g: the true pointing error stays <= g over the final {gates.dwell_steps} steps "
+        f"({gates.dwell_steps * study.spec.dt_s:g} s), the benchmark's window; the benchmark's gate is "
+        f"{gates.settled_deg:g} deg. Rates in %, the settled count in brackets. A rate that jumps between "
+        "neighbouring gates says the controller parks near that error (a bias, a limit cycle), not that it "
+        "fails to converge.",
+    )
+
+    def row(o: EpisodeOutcomes) -> list[str]:
+        return [
+            f"{100 * k / o.n:.1f} ({k})" for k in settled_at(o.dwell_max_error_deg, SENSITIVITY_GATES_DEG)
+        ]
+
+    return head + _per_column(study, [f"settled at {g:g} deg" for g in SENSITIVITY_GATES_DEG], row)
+
+
+def final_error_profile_markdown(study: Study) -> str:
+    """The performance profile of the final pointing error: per class and controller, the share of
+    episodes whose final error is <= tau at a few thresholds (the figure draws the whole curve)."""
+    head = _outcome_head(
+        study,
+        "Performance profile of the final pointing error",
+        "Each entry: % of the cell's episodes whose true pointing error after the last step is <= tau "
+        "(rliable's performance profile, with error <= tau for score > tau). Unlike the settled gate it "
+        "looks at one instant, not a window, and shows how far off the episodes that fail end up: a "
+        "controller that parks at 0.3 deg and one that tumbles at 120 deg both settle 0 %.",
+        "final_error_profile",
+    )
+    taus = np.array(PROFILE_TABLE_TAUS_DEG)
+
+    def row(o: EpisodeOutcomes) -> list[str]:
+        return [f"{100 * v:.1f}" for v in performance_profile(o.final_error_deg, taus)] + [
+            f"{np.median(o.final_error_deg):.3g}"
+        ]
+
+    return head + _per_column(study, [*(f"<= {t:g} deg" for t in taus), "median (deg)"], row)
+
+
+SETTLING_QUANTILES = (0.1, 0.5, 0.9)
+
+
+def settling_quantiles(o: EpisodeOutcomes) -> list[float | None]:
+    """The 10th, 50th and 90th percentiles (s) of the settling time over the episodes whose final
+    sample is within the settled tolerance (observed values: inverted CDF); ``None`` where none is."""
+    times = o.settling_time_s[np.isfinite(o.settling_time_s)]
+    if times.size == 0:
+        return [None] * len(SETTLING_QUANTILES)
+    return [float(v) for v in np.quantile(times, SETTLING_QUANTILES, method="inverted_cdf")]
+
+
+def settling_time_markdown(study: Study) -> str:
+    """Per class and controller: the share of episodes that end within the settled tolerance and
+    the spread of their settling times."""
+    gates = study.spec.gates
+    head = _outcome_head(
+        study,
+        "Settling time",
+        f"Settling time: the time of the first sample after which the true pointing error never again "
+        f"exceeds {gates.settled_deg:g} deg; defined for the episodes whose last sample is within (which "
+        "includes the settled ones and a few that enter the tolerance inside the final window). Times in s "
+        "from the start of the episode"
+        + (
+            " (the fault starts mid-flight, so a settling time before the onset means the fault never "
+            "pushed the error back out)"
+            if has_onset(study.spec)
+            else ""
+        )
+        + "; percentiles over the episodes that have one.",
+        "settling_time",
+    )
+
+    def row(o: EpisodeOutcomes) -> list[str]:
+        share = float(np.mean(np.isfinite(o.settling_time_s)))
+        return [f"{100 * share:.1f}"] + ["-" if v is None else f"{v:.1f}" for v in settling_quantiles(o)]
+
+    return head + _per_column(
+        study, ["within at the end %", "10th pct (s)", "median (s)", "90th pct (s)"], row
+    )
+
+
+def distributions_json(study: Study) -> dict:
+    """``distributions.json``: per controller and cell, what the tables and figures above are drawn
+    from, in the form a board entry would store (fixed grids, integer counts, exact and poolable):
+    ``final_error_profile`` (``statistics.profile_counts`` on ``taus_deg``), ``settled_at_gates``
+    (``statistics.settled_at`` on ``gates_deg``) and the settling-time percentiles."""
+    privileged = _privileged(study)
+    return {
+        "benchmark_version": study.spec.version,
+        "n_faults": study.battery.n_faults,
+        "n_seeds": study.battery.n_seeds,
+        "taus_deg": [float(t) for t in PROFILE_TAUS_DEG],
+        "gates_deg": list(SENSITIVITY_GATES_DEG),
+        "settling_quantiles": list(SETTLING_QUANTILES),
+        "cells": [
+            {
+                "controller": name,
+                "privileged": privileged[name],
+                "cell": column,
+                "n": o.n,
+                "final_error_profile": profile_counts(o.final_error_deg).tolist(),
+                "settled_at_gates": settled_at(o.dwell_max_error_deg).tolist(),
+                "settling_time_s": settling_quantiles(o),
+            }
+            for name, cells in cell_outcomes(study).items()
+            for column, o in cells.items()
+        ],
+    }
+
+
 def _dump_json(model: BaseModel) -> str:
     return model.model_dump_json(by_alias=True, indent=2) + "\n"
 
 
 def write_tables(study: Study, out_dir: Path) -> list[Path]:
     """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``,
-    ``settled_by_hub.md`` where the held-out hub inertia has several parts, and
-    ``fdir_detection.md`` where the study measured ``fdir``'s detector."""
+    ``settled_by_hub.md`` where the held-out hub inertia has several parts,
+    ``fdir_detection.md`` where the study measured ``fdir``'s detector, then
+    ``gate_sensitivity.md``, ``final_error_profile.md``, ``settling_time.md`` and
+    ``distributions.json``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     contents = {
         "battery.md": battery_markdown(study),
@@ -231,6 +436,10 @@ def write_tables(study: Study, out_dir: Path) -> list[Path]:
         contents["settled_by_hub.md"] = hub_markdown(study)
     if study.detection:
         contents["fdir_detection.md"] = detection_markdown(study.spec, study.detection)
+    contents["gate_sensitivity.md"] = gate_sensitivity_markdown(study)
+    contents["final_error_profile.md"] = final_error_profile_markdown(study)
+    contents["settling_time.md"] = settling_time_markdown(study)
+    contents["distributions.json"] = json.dumps(distributions_json(study), indent=1) + "\n"
     paths = []
     for name, text in contents.items():
         path = out_dir / name

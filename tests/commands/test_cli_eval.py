@@ -8,6 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from scftc_cli.commands.app import app
+from scftc_cli.statistics import design_effect, interval_by_fault
 
 runner = CliRunner()
 
@@ -50,8 +51,23 @@ def test_json_output_has_the_contract_fields():
     }
     assert (cell["split"], cell["class"], cell["sensor"], cell["n"]) == ("test", "gain_bias", None, 4)
     for gate in ("settled", "operational", "touch_once"):
-        assert set(cell[gate]) == {"k", "rate", "ci_low", "ci_high"}
+        assert set(cell[gate]) == {
+            "k",
+            "rate",
+            "ci_low",
+            "ci_high",
+            "by_fault",
+            "interval_by_fault",
+            "design_effect",
+        }
         assert cell[gate]["ci_low"] <= cell[gate]["rate"] <= cell[gate]["ci_high"]
+        by_fault = cell[gate]["by_fault"]
+        assert len(by_fault) == 2 and sum(by_fault) == cell[gate]["k"]
+        low, high = cell[gate]["interval_by_fault"]
+        assert low <= cell[gate]["rate"] <= high
+        # anyone can recompute the by-fault numbers from the per-fault counts in the document
+        assert (low, high) == interval_by_fault(by_fault, cell["n"] // len(by_fault))
+        assert cell[gate]["design_effect"] == design_effect(by_fault, cell["n"] // len(by_fault))
     assert set(cell["final_error_deg"]) == {"median", "mean"}
 
 

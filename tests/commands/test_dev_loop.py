@@ -8,12 +8,14 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scipy.stats import binomtest
 from typer.testing import CliRunner
 
 from scftc_cli.baselines.params import PARAMS_DIR
 from scftc_cli.commands.app import app
+from scftc_cli.statistics import paired_by_fault
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[2]
@@ -121,6 +123,20 @@ def test_compare_reports_discordant_pairs_and_the_exact_p_value():
     assert cell["a_settled"] - cell["b_settled"] == b - c
     assert cell["p_value"] == pytest.approx(binomtest(b, b + c, 0.5).pvalue, abs=1e-12)
     assert b + c > 0  # not a vacuous comparison
+    # the by-fault test is the sign-flip test on the per-fault counts `scftc eval` prints
+    a_counts, b_counts = (
+        np.array(
+            _json("eval", "--controller", name, "--class", "gain_bias")["cells"][0]["settled"]["by_fault"]
+        )
+        for name in ("rls_dob", "rma_dob")
+    )
+    assert cell["faults"] == a_counts.size == 50
+    assert (cell["a_ahead_faults"], cell["b_ahead_faults"]) == (
+        int(np.sum(a_counts > b_counts)),
+        int(np.sum(b_counts > a_counts)),
+    )
+    assert cell["p_value_by_fault"] == paired_by_fault(a_counts, b_counts, 10) == cell["p_holm_by_fault"]
+    assert "McNemar" in doc["test"] and "sign-flip" in doc["test"]
 
 
 def test_compare_takes_a_file_and_holm_adjusts_across_cells():
@@ -129,6 +145,10 @@ def test_compare_takes_a_file_and_holm_adjusts_across_cells():
     assert [c["cell"] for c in cells] == ["sign", "gain", "gain_bias", "loss"]
     raw = sorted(c["p_value"] for c in cells)
     holm = sorted(c["p_holm"] for c in cells)
+    assert holm[0] == pytest.approx(min(1.0, 4 * raw[0]))
+    assert all(h >= r for h, r in zip(holm, raw, strict=True))
+    raw = sorted(c["p_value_by_fault"] for c in cells)
+    holm = sorted(c["p_holm_by_fault"] for c in cells)
     assert holm[0] == pytest.approx(min(1.0, 4 * raw[0]))
     assert all(h >= r for h, r in zip(holm, raw, strict=True))
 

@@ -18,6 +18,7 @@ from scftc_cli.registry import ControllerSpec, make_controller, registry
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.v1.faults import draw_episodes
 from scftc_cli.spec import V1 as SPEC
+from scftc_cli.statistics import PROFILE_TAUS_DEG
 from scftc_cli.study import run as study_run
 from scftc_cli.study.figures import FIGURES
 from scftc_cli.study.run import (
@@ -32,7 +33,16 @@ from scftc_cli.study.run import (
 runner = CliRunner()
 N_FAULTS, N_SEEDS = 2, 2
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-TABLES = ("battery.md", "battery.json", "sensor.md", "sensor.json")
+TABLES = (
+    "battery.md",
+    "battery.json",
+    "sensor.md",
+    "sensor.json",
+    "gate_sensitivity.md",
+    "final_error_profile.md",
+    "settling_time.md",
+    "distributions.json",
+)
 
 
 @pytest.fixture(scope="module")
@@ -125,6 +135,29 @@ def test_every_png_is_a_real_image_of_some_size(study_dir: Path, stem: str) -> N
     assert height >= 400 and width >= 600
     svg = (study_dir / f"{stem}.svg").read_text()
     assert "<svg" in svg and "</svg>" in svg
+
+
+@pytest.mark.slow
+def test_distributions_agree_with_the_battery_and_the_sensor_table(study_dir: Path) -> None:
+    """distributions.json holds, per controller and cell, the counts the new tables and figures
+    are drawn from: at the benchmark's own gate they are the battery's settled counts, the profile
+    never decreases and reaches every episode at 180 deg."""
+    doc = json.loads((study_dir / "distributions.json").read_text())
+    at_gate = doc["gates_deg"].index(SPEC.gates.settled_deg)
+    assert doc["taus_deg"] == pytest.approx(PROFILE_TAUS_DEG.tolist())
+    settled = {}
+    for name in ("battery.json", "sensor.json"):
+        for r in json.loads((study_dir / name).read_text())["results"]:
+            for c in r["cells"]:
+                settled[(r["controller"], c["sensor"] or c["class"])] = c["settled"]["k"]
+    assert {(c["controller"], c["cell"]) for c in doc["cells"]} == set(settled)
+    for cell in doc["cells"]:
+        assert cell["settled_at_gates"][at_gate] == settled[(cell["controller"], cell["cell"])]
+        assert cell["settled_at_gates"] == sorted(cell["settled_at_gates"])
+        profile = cell["final_error_profile"]
+        assert profile == sorted(profile) and profile[-1] == cell["n"] == N_FAULTS * N_SEEDS
+    sensitivity = (study_dir / "gate_sensitivity.md").read_text()
+    assert sensitivity.count("## ") == len(SPEC.fault_classes) + len(SPEC.sensor_faults)
 
 
 def test_regime_rule_follows_the_gate() -> None:
