@@ -73,8 +73,22 @@ class GateStat(BaseModel):
 
 
 class FinalError(BaseModel):
+    """The final true pointing error of a cell's episodes (deg): median, mean and, where recorded,
+    the cell's performance profile: ``profile[i]`` episodes end within ``PROFILE_TAUS_DEG[i]``
+    (``statistics.profile_counts``; 40 log-spaced thresholds from 0.01 to 180 deg)."""
+
     median: float
     mean: float
+    profile: list[int] | None = Field(
+        default=None, description="Episodes whose final error is <= each threshold of PROFILE_TAUS_DEG."
+    )
+
+    @model_serializer(mode="wrap")
+    def _omit_absent_profile(self, handler: SerializerFunctionWrapHandler) -> dict:
+        data = handler(self)
+        if self.profile is None:
+            data.pop("profile", None)
+        return data
 
 
 class CellResult(BaseModel):

@@ -20,7 +20,7 @@ import numpy as np
 from scftc_cli.records import CellResult, EpisodeOutcomes, FinalError, GateStat
 from scftc_cli.sim.rollout import Rollout
 from scftc_cli.spec import GATES, GateSpec
-from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts
+from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts, profile_counts
 
 
 def settled(error_deg: np.ndarray, threshold_deg: float, dwell_steps: int) -> np.ndarray:
@@ -116,5 +116,6 @@ def score_cell(
         final_error_deg=FinalError(
             median=float(np.median(outcomes.final_error_deg)),
             mean=float(np.mean(outcomes.final_error_deg)),
+            profile=profile_counts(outcomes.final_error_deg).tolist(),
         ),
     )

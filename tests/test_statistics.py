@@ -338,3 +338,16 @@ def test_pooled_profile_from_stored_counts_is_the_profile_of_the_cells():
 def test_settled_at_is_the_settled_gate_at_each_threshold():
     worst = np.array([0.05, 0.1, 0.15, 0.2, 0.2000001, 0.7, 3.0])
     assert settled_at(worst).tolist() == [2, 4, 5, 6]
+
+
+@pytest.mark.parametrize(
+    "p_values",
+    [[0.01, 0.04, 0.03, 0.2], [0.5], [0.001, 0.001, 0.9, 0.04, 1.0], [0.02, 0.02], []],
+)
+def test_holm_matches_statsmodels(p_values: list[float]):
+    from statsmodels.stats.multitest import multipletests
+
+    from scftc_cli.statistics import holm
+
+    expected = [float(x) for x in multipletests(p_values, method="holm")[1]] if p_values else []
+    assert holm(p_values) == pytest.approx(expected, abs=1e-15)

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from scftc_cli import __version__
 from scftc_cli.errors import ScftcError, UsageError
@@ -33,6 +33,11 @@ class Provenance(BaseModel):
     seed: int
     budget: str
     train_settled_rate: float
+    seeds_tried: int = Field(
+        default=1,
+        ge=1,
+        description="Training seeds run before this artifact was committed (1: no selection).",
+    )
     benchmark_version: str = "scftc-v1"
     package_version: str = __version__
     created_utc: str = ""

@@ -120,6 +120,18 @@ def artifact_hashes(entry: ControllerSpec) -> dict[str, str]:
     }
 
 
+def training_record(entry: ControllerSpec) -> dict[str, int] | None:
+    """A learned built-in's training seed and seeds tried, from its weights file's provenance (the
+    ``.yaml`` beside the ``.npz``); ``None`` for a controller that is not learned."""
+    if entry.family != "learned":
+        return None
+    import yaml
+
+    (weights,) = entry.artifact_paths()
+    provenance = yaml.safe_load(weights.with_suffix(".yaml").read_text())["provenance"]
+    return {"seed": int(provenance["seed"]), "seeds_tried": int(provenance.get("seeds_tried", 1))}
+
+
 def score_builtin(entry: ControllerSpec, scoring: Scoring, draws: Draws) -> Flown:
     """Per-draw cell results of a built-in controller (in process: trusted code)."""
     return _score(

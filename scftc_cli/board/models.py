@@ -17,6 +17,7 @@ import json
 import math
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from scftc_cli.board.rounds import HEX64, commitment
@@ -24,6 +25,7 @@ from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, GateStat
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import DEFAULT_BENCHMARK, GATES, get_spec
+from scftc_cli.statistics import PROFILE_TAUS_DEG, design_effect, interval_by_fault
 from scftc_cli.submission.manifest import (
     MAX_AUTHOR_CHARS,
     MAX_AUTHORS,
@@ -48,17 +50,37 @@ def ranking_rule(ranked_classes: tuple[str, ...], episodes_per_cell: int) -> str
     """The ranking rule, in words (stored with every board and printed above every table)."""
     pooled = len(ranked_classes) * episodes_per_cell
     return (
-        f"deployable entries ranked by their settled rate on the sealed draw, pooled over the ranked classes "
-        f"({', '.join(ranked_classes)}; K settled of {pooled} episodes, which is exactly the mean of the "
-        f"per-class rates since every class holds {episodes_per_cell}); the interval is the Wilson 95 % "
-        "interval of K. Entries are sorted by K; a tie group starts with the best entry not yet placed "
-        f"and holds every following entry that a two-sided Fisher exact test does not separate from it "
-        f"(p >= {TIE_ALPHA}); entries of a group share its rank. Privileged oracles are shown apart as "
-        "upper bounds, never ranked"
+        f"sealed deployable entries ranked by their settled rate on the sealed draw, pooled over the ranked "
+        f"classes ({', '.join(ranked_classes)}; K settled of {pooled} episodes, which is exactly the mean of "
+        f"the per-class rates since every class holds {episodes_per_cell}); shown with the Wilson 95 % "
+        "interval of K (episodes as independent trials) and the by-fault 95 % interval (a cluster bootstrap "
+        "over whole faults, stratified by class: the one that respects how episodes are drawn). Entries are "
+        "sorted by K; a tie group starts with the best entry not yet placed and holds every following entry "
+        "that an exact two-sample permutation test exchanging whole faults between the two entries within "
+        f"each class does not separate from it (p >= {TIE_ALPHA}); entries of a group share its rank. "
+        "Privileged oracles are shown apart as upper bounds, never ranked; pending entries are listed with "
+        "their public score until their round is sealed"
     )
 
 
 EntryStatus = Literal["pending", "sealed", "failed"]
+
+
+class TrainingRecord(BaseModel):
+    """How a learned built-in's committed weights were chosen: one draw from its training
+    procedure, so its number is one sample of what the procedure gives (docs/statistics.md).
+
+    Attributes:
+        seed: the training seed of the weights scored here.
+        seeds_tried: how many training seeds were run before these weights were committed (1: the
+            seed was fixed in advance, nothing was selected). The spread over further seeds, run
+            afterwards to measure it, is in the study (docs/study.md), not a selection.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    seed: int = Field(ge=0)
+    seeds_tried: int = Field(ge=1)
 
 
 class Entry(BaseModel):
@@ -109,6 +131,9 @@ class Entry(BaseModel):
         default=None, pattern=SALT_PATTERN, description="Hex of the salt that keys the sealed draw."
     )
     failure: str | None = Field(default=None, max_length=MAX_REASON_CHARS)
+    training: TrainingRecord | None = Field(
+        default=None, description="A learned built-in's training seed and how many seeds were tried."
+    )
 
     @field_validator("source")
     @classmethod
@@ -129,8 +154,10 @@ class Entry(BaseModel):
                 f"{MAX_AUTHOR_CHARS} characters each"
             )
         spec = get_spec(self.benchmark_version)
-        if self.kind == "submission" and (self.privileged or self.sha256 is None):
-            raise ValueError("a submission is never privileged and always carries its sha256")
+        if self.kind == "submission" and (self.privileged or self.sha256 is None or self.training):
+            raise ValueError(
+                "a submission is never privileged, always carries its sha256, and no training record"
+            )
         if (self.n_faults, self.n_seeds) != (spec.n_faults, spec.n_seeds):
             raise ValueError(
                 "only full-size runs are ranked: n_faults x n_seeds must be "
@@ -155,7 +182,7 @@ class Entry(BaseModel):
             if [c.key for c in results] != expected:
                 raise ValueError(f"{draw} cells must be exactly {[c.label for c in cells]}")
             for c in results:
-                check_cell(c, self.n_faults * self.n_seeds, f"{draw} {c.label}")
+                check_cell(c, self.n_faults, self.n_seeds, f"{draw} {c.label}")
         return self
 
     @property
@@ -172,8 +199,18 @@ def _wilson(k: int, n: int) -> tuple[float, float]:
     return wilson_interval(k, n)  # cached: every read re-checks hundreds of intervals
 
 
-def check_cell(cell: CellResult, n: int, where: str) -> None:
-    """Raise ``ValueError`` unless every gate's rate is ``k/n`` and its interval is Wilson's."""
+@functools.lru_cache(maxsize=4096)
+def _by_fault(counts: tuple[int, ...], seeds: int) -> tuple[tuple[float, float], float | None]:
+    array = np.array(counts)
+    return interval_by_fault(array, seeds), design_effect(array, seeds)
+
+
+def check_cell(cell: CellResult, n_faults: int, n_seeds: int, where: str) -> None:
+    """Raise ``ValueError`` unless every gate's rate is ``k/n``, its interval is Wilson's, its
+    per-fault counts add up to ``k`` (one count in ``0..n_seeds`` per fault) and its by-fault
+    interval and design effect are the ones those counts give; and the final-error profile is
+    one non-decreasing count per threshold of ``PROFILE_TAUS_DEG``, ending at most at ``n``."""
+    n = n_faults * n_seeds
     if cell.n != n:
         raise ValueError(f"{where}: n = {cell.n}, but n_faults x n_seeds = {n}")
     for gate in GATES:
@@ -185,6 +222,27 @@ def check_cell(cell: CellResult, n: int, where: str) -> None:
             math.isclose(stat.ci_low, low, abs_tol=1e-9) and math.isclose(stat.ci_high, high, abs_tol=1e-9)
         ):
             raise ValueError(f"{where} {gate}: [{stat.ci_low}, {stat.ci_high}] is not the Wilson interval")
+        counts = stat.by_fault
+        if counts is None or len(counts) != n_faults or max(counts) > n_seeds:
+            raise ValueError(f"{where} {gate}: by_fault must hold {n_faults} counts of 0..{n_seeds}")
+        interval, effect = _by_fault(tuple(counts), n_seeds)
+        given = stat.interval_by_fault or (-1.0, -1.0)
+        if not all(math.isclose(a, b, abs_tol=1e-9) for a, b in zip(given, interval, strict=True)):
+            raise ValueError(f"{where} {gate}: interval_by_fault is not the one its by_fault counts give")
+        if (effect is None) != (stat.design_effect is None) or (
+            effect is not None and not math.isclose(effect, stat.design_effect or 0.0, rel_tol=1e-9)
+        ):
+            raise ValueError(f"{where} {gate}: design_effect is not the one its by_fault counts give")
+    profile = cell.final_error_deg.profile
+    if (
+        profile is None
+        or len(profile) != len(PROFILE_TAUS_DEG)
+        or profile != sorted(profile)
+        or profile[-1] > n
+    ):
+        raise ValueError(
+            f"{where}: final_error_deg.profile must hold {len(PROFILE_TAUS_DEG)} non-decreasing counts"
+        )
 
 
 EventAction = Literal[

@@ -31,6 +31,7 @@ from scftc_cli.board.flights import (
     fly_submission,
     require_same_commands,
     score_builtin,
+    training_record,
 )
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
 from scftc_cli.board.ranking import Ranked, Ranking, rank_board
@@ -478,6 +479,7 @@ def rebuild(
                 public=public,
                 scoring=scoring,
                 artifacts=artifact_hashes(info),
+                training=training_record(info),
             )
         except ScftcError as err:
             failed[name] = str(err)

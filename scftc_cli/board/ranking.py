@@ -2,29 +2,45 @@
 
 The ranked quantity is an entry's settled count ``K`` pooled over the ranked classes of its
 sealed draw (``K / N`` with ``N = classes x episodes per cell`` is exactly the mean of the
-per-class settled rates, every class holding the same number of episodes). Its interval is the
-Wilson 95 % interval of ``(K, N)``; stratified by class, the true sampling variance is at most
-the binomial one, so the interval is, if anything, conservative. Two sealed draws are independent
-(different salts), so two entries are compared by Fisher's exact test on their ``(K, N)``; the
-public draw pairs entries episode by episode and is compared with ``scftc compare``.
+per-class settled rates, every class holding the same number of episodes). Two intervals are
+shown: the Wilson 95 % interval of ``(K, N)``, which treats the ``N`` episodes as independent, and
+the by-fault interval, a cluster bootstrap over whole faults stratified by class, which respects
+how the episodes were drawn (every fault flown from several initial conditions; docs/statistics.md)
+and is the one to draw conclusions from.
+
+Tie groups are decided by fault too: the sealed draws of two entries are independent (different
+salts, so different faults), and an exact two-sample permutation test exchanges whole faults
+between the two entries within each class (``statistics.two_sample_by_fault``). The public draw
+pairs entries episode by episode and is compared with ``scftc compare``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from scftc_cli.board.models import TIE_ALPHA, Entry, Leaderboard
 from scftc_cli.records import CellResult
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import get_spec
+from scftc_cli.statistics import holm, interval_by_fault, two_sample_by_fault
+
+FLAG_ALPHA = 0.05
 
 
 @dataclass(frozen=True)
 class Pooled:
-    """Settled episodes ``k`` of ``n`` pooled over the ranked classes, with the Wilson interval."""
+    """Settled episodes ``k`` of ``n`` pooled over the ranked classes, with their per-fault counts.
+
+    Attributes:
+        strata: one tuple per class of its settled episodes per fault (``seeds`` episodes each).
+    """
 
     k: int
     n: int
+    strata: tuple[tuple[int, ...], ...]
+    seeds: int
 
     @property
     def rate(self) -> float:
@@ -32,23 +48,34 @@ class Pooled:
 
     @property
     def interval(self) -> tuple[float, float]:
+        """The Wilson 95 % interval of ``(k, n)`` (episodes as independent trials)."""
         return wilson_interval(self.k, self.n)
+
+    @property
+    def interval_by_fault(self) -> tuple[float, float]:
+        """The by-fault 95 % interval: a cluster bootstrap over faults, stratified by class."""
+        return interval_by_fault([np.array(s) for s in self.strata], self.seeds)
 
 
 def pooled_settled(cells: list[CellResult], ranked_classes: tuple[str, ...]) -> Pooled:
     """The settled count pooled over ``ranked_classes`` (their actuator cells, no sensor fault)."""
     chosen = [c for c in cells if c.sensor is None and c.fault_class in ranked_classes]
-    return Pooled(sum(c.settled.k for c in chosen), sum(c.n for c in chosen))
+    strata = tuple(tuple(c.settled.by_fault or ()) for c in chosen)
+    seeds = chosen[0].n // len(strata[0]) if chosen and strata[0] else 1
+    return Pooled(sum(c.settled.k for c in chosen), sum(c.n for c in chosen), strata, seeds)
+
+
+def tie_p_value(a: Pooled, b: Pooled) -> float:
+    """Two-sided p-value that two independent entries' pooled settled rates are equal: the exact
+    stratified two-sample permutation test over whole faults."""
+    if a.k * b.n == b.k * a.n:
+        return 1.0
+    return two_sample_by_fault([np.array(s) for s in a.strata], [np.array(s) for s in b.strata], a.seeds)
 
 
 def separated(a: Pooled, b: Pooled, alpha: float = TIE_ALPHA) -> bool:
-    """Whether two independent pooled counts differ at level ``alpha`` (two-sided Fisher exact)."""
-    if a.k * b.n == b.k * a.n:
-        return False
-    from scipy.stats import fisher_exact  # scipy.stats costs 0.7 s to import: only when ranking
-
-    _, p = fisher_exact([[a.k, a.n - a.k], [b.k, b.n - b.k]])
-    return bool(p < alpha)
+    """Whether two independent pooled counts differ at level ``alpha`` (by-fault two-sample test)."""
+    return tie_p_value(a, b) < alpha
 
 
 @dataclass(frozen=True)
@@ -59,8 +86,9 @@ class Ranked:
         sealed, public: pooled settled counts on each draw.
         rank: the tie group's rank (``None`` for oracles).
         tied: whether the group holds more than one entry.
-        flagged: cells (and ``mean``) where the public settled rate beats the sealed one beyond
-            both Wilson intervals: the public score is not to be trusted.
+        flagged: cells (and ``mean`` for the ranked quantity) where the public draw settles more
+            than the sealed one beyond chance: a two-sample test over faults (the two draws are
+            independent) with Holm's adjustment over the entry's cells, at ``FLAG_ALPHA``.
     """
 
     entry: Entry
@@ -72,19 +100,27 @@ class Ranked:
 
 
 def flagged_cells(entry: Entry, ranked_classes: tuple[str, ...]) -> list[str]:
-    """Cells (and ``mean`` for the ranked quantity) where public beats sealed beyond both intervals."""
-    flags = [
-        pub.label
+    """Cells (and ``mean`` for the ranked quantity) where the public draw settles more than the
+    sealed one and the by-fault two-sample test, Holm-adjusted over them, says it is no chance."""
+    pairs = [
+        (pub.label, _single(pub), _single(sealed))
         for pub, sealed in zip(entry.public, entry.sealed, strict=True)
-        if pub.settled.ci_low > sealed.settled.ci_high
     ]
-    public, sealed = (
-        pooled_settled(entry.public, ranked_classes),
-        pooled_settled(entry.sealed, ranked_classes),
+    pairs.append(
+        ("mean", pooled_settled(entry.public, ranked_classes), pooled_settled(entry.sealed, ranked_classes))
     )
-    if public.interval[0] > sealed.interval[1]:
-        flags.append("mean")
-    return flags
+    adjusted = holm([tie_p_value(public, sealed) for _, public, sealed in pairs])
+    return [
+        label
+        for (label, public, sealed), p in zip(pairs, adjusted, strict=True)
+        if public.rate > sealed.rate and p < FLAG_ALPHA
+    ]
+
+
+def _single(cell: CellResult) -> Pooled:
+    """One cell as a pooled count (its own stratum)."""
+    counts = tuple(cell.settled.by_fault or ())
+    return Pooled(cell.settled.k, cell.n, (counts,), cell.n // len(counts) if counts else 1)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ import io
 import json
 
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
-from scftc_cli.board.ranking import Pooled, Ranked, Ranking, pooled_settled, rank_board
+from scftc_cli.board.ranking import FLAG_ALPHA, Pooled, Ranked, Ranking, pooled_settled, rank_board
 from scftc_cli.records import CellResult
 from scftc_cli.render import markdown_lines, pct
 from scftc_cli.spec import GATES, get_spec
@@ -19,10 +19,15 @@ def by_class(cells: list[CellResult], fault_class: str) -> CellResult:
     return next(c for c in cells if c.sensor is None and c.fault_class == fault_class)
 
 
-def pooled_text(p: Pooled) -> str:
-    """``97.3 [96.4, 98.0]``: a pooled rate and its Wilson interval in percent."""
+def pooled_text(p: Pooled, by_fault: bool = True) -> str:
+    """``97.3 [96.4, 98.0] {94.1, 99.0}``: a pooled rate in percent with its Wilson interval in
+    brackets and its by-fault interval in braces (``by_fault=False``: Wilson only)."""
     low, high = p.interval
-    return f"{100 * p.rate:.1f} [{100 * low:.1f}, {100 * high:.1f}]"
+    text = f"{100 * p.rate:.1f} [{100 * low:.1f}, {100 * high:.1f}]"
+    if by_fault:
+        low, high = p.interval_by_fault
+        text += f" {{{100 * low:.1f}, {100 * high:.1f}}}"
+    return text
 
 
 def rank_text(r: Ranked) -> str:
@@ -48,7 +53,9 @@ def board_markdown(board: Leaderboard) -> str:
         f"draw (a salt derived from the round's secret, committed before the round held any entry and "
         f"revealed when it was sealed). Rates are the **settled** gate (within {spec.gates.settled_deg:g} "
         f"deg over the final {spec.gates.dwell_steps * spec.dt_s:g} s, on the true state) in %, with "
-        "Wilson 95 % intervals.",
+        "Wilson 95 % intervals in brackets and, for the ranked figures, the by-fault 95 % interval in "
+        "braces (a cluster bootstrap over whole faults: wider, and the one to draw conclusions from; "
+        "docs/statistics.md).",
         "",
         f"**Ranking:** {ranking.rule}.",
         "",
@@ -66,7 +73,7 @@ def board_markdown(board: Leaderboard) -> str:
             f"**{pooled_text(r.sealed)}**",
             pooled_text(r.public),
             *(pct(by_class(r.entry.sealed, c).settled) for c in spec.fault_classes),
-            ("public > sealed on " + ", ".join(r.flagged)) if r.flagged else "",
+            ("public above sealed on " + ", ".join(r.flagged)) if r.flagged else "",
         ]
         for r in ranking.deployable
     ]
@@ -99,8 +106,11 @@ def board_markdown(board: Leaderboard) -> str:
     if flagged:
         out += ["", "## Flagged", ""]
         out += [
-            f"- `{r.entry.name}`: its public settled rate beats its sealed one beyond both intervals on "
-            f"{', '.join(r.flagged)}: its public score is not to be trusted (the sealed one ranks it)."
+            f"- `{r.entry.name}`: settles more on the public draw than on its sealed one on "
+            f"{', '.join(r.flagged)}, beyond chance (an exact two-sample test over faults, the two draws "
+            f"being independent, Holm-adjusted over the entry's cells, at {FLAG_ALPHA}). The public episodes "
+            "are pinned and open, so a controller can recognise them; its public score says nothing the "
+            "sealed one does not, and only the sealed one ranks."
             for r in flagged
         ]
     out += ["", "## Rounds", ""]
@@ -171,7 +181,15 @@ def _pending_and_failed(board: Leaderboard, ranking: Ranking, classes: tuple[str
 
 def _pooled_json(p: Pooled) -> dict:
     low, high = p.interval
-    return {"k": p.k, "n": p.n, "rate": p.rate, "ci_low": low, "ci_high": high}
+    by_low, by_high = p.interval_by_fault
+    return {
+        "k": p.k,
+        "n": p.n,
+        "rate": p.rate,
+        "ci_low": low,
+        "ci_high": high,
+        "interval_by_fault": [by_low, by_high],
+    }
 
 
 def _ranked_json(r: Ranked) -> dict:

@@ -94,7 +94,8 @@ def extends_problems(base: Leaderboard, board: Leaderboard) -> list[str]:
 
 
 def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]:
-    """Differences between the board's cells and a re-run: counts exactly, errors to 1e-6."""
+    """Differences between the board's cells and a re-run: counts (per cell, per fault, per
+    profile threshold) exactly, errors to 1e-6."""
     diffs = []
     for b, r in zip(board, rerun, strict=True):
         label = b.label
@@ -102,9 +103,13 @@ def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]
             diffs.append(f"{label} n {b.n} on the board, {r.n} re-run")
             continue
         for gate in GATES:
-            kb, kr = getattr(b, gate).k, getattr(r, gate).k
-            if kb != kr:
-                diffs.append(f"{label} {gate} k {kb} on the board, {kr} re-run")
+            gb, gr = getattr(b, gate), getattr(r, gate)
+            if gb.k != gr.k:
+                diffs.append(f"{label} {gate} k {gb.k} on the board, {gr.k} re-run")
+            elif gb.by_fault != gr.by_fault:
+                diffs.append(f"{label} {gate} per-fault counts differ from the re-run's")
+        if b.final_error_deg.profile != r.final_error_deg.profile:
+            diffs.append(f"{label} final-error profile differs from the re-run's")
         for stat in ("median", "mean"):
             vb, vr = getattr(b.final_error_deg, stat), getattr(r.final_error_deg, stat)
             if not math.isclose(vb, vr, rel_tol=1e-6, abs_tol=1e-9):

@@ -24,7 +24,7 @@ from pydantic import BaseModel
 from scftc_cli.evaluate import Cell, ControllerChoice, evaluate_cells
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.statistics import paired_by_fault, per_fault_counts
+from scftc_cli.statistics import holm, paired_by_fault, per_fault_counts
 
 
 class CellComparison(BaseModel):
@@ -72,15 +72,6 @@ def mcnemar_exact(a_only: int, b_only: int) -> float:
     from statsmodels.stats.contingency_tables import mcnemar
 
     return float(mcnemar(np.array([[0, a_only], [b_only, 0]]), exact=True).pvalue)
-
-
-def holm(p_values: list[float]) -> list[float]:
-    """Holm-adjusted p-values, in the input order."""
-    if not p_values:
-        return []
-    from statsmodels.stats.multitest import multipletests
-
-    return [float(p) for p in multipletests(p_values, method="holm")[1]]
 
 
 @dataclass(frozen=True)

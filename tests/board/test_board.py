@@ -24,7 +24,7 @@ from scipy.stats import fisher_exact
 from typer.testing import CliRunner
 
 import scftc_cli.board.store as store
-from scftc_cli.board.models import Entry, Leaderboard, Round
+from scftc_cli.board.models import Entry, Leaderboard, Round, ranking_rule
 from scftc_cli.board.ops import remove
 from scftc_cli.board.ranking import pooled_settled, rank_board
 from scftc_cli.board.render import board_csv, board_json, board_markdown
@@ -35,6 +35,7 @@ from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, FinalError
 from scftc_cli.scoring import gate_stat, wilson_interval
 from scftc_cli.spec import V1
+from scftc_cli.statistics import profile_counts, two_sample_by_fault
 
 runner = CliRunner()
 N = V1.episodes_per_cell  # 500: boards hold full-size entries only
@@ -70,7 +71,11 @@ def update_board(path: Path, change) -> Leaderboard:
 
 
 def cell(fault_class: str, sensor: str | None, k: int, n: int = N) -> CellResult:
-    stat = gate_stat(np.arange(n) < k)
+    """A full-size cell with ``k`` settled episodes spread over its faults as evenly as they go
+    (episode ``i`` belongs to fault ``i % n_faults``), every gate alike."""
+    passed = np.arange(n) < k
+    stat = gate_stat(passed, fault_index=np.arange(n) % V1.n_faults)
+    final = np.where(passed, 0.1, 10.0)
     return CellResult(
         split="test",
         fault_class=fault_class,
@@ -79,7 +84,9 @@ def cell(fault_class: str, sensor: str | None, k: int, n: int = N) -> CellResult
         settled=stat,
         operational=stat,
         touch_once=stat,
-        final_error_deg=FinalError(median=1.0, mean=2.0),
+        final_error_deg=FinalError(
+            median=float(np.median(final)), mean=float(np.mean(final)), profile=profile_counts(final).tolist()
+        ),
     )
 
 
@@ -132,18 +139,25 @@ def test_the_ranked_quantity_is_the_pooled_sealed_count_with_its_wilson_interval
     assert pooled.interval == wilson_interval(1290, 1500)
 
 
-def test_tie_groups_follow_fisher_on_the_sealed_draw_and_oracles_stand_apart():
+def test_tie_groups_follow_the_by_fault_test_on_the_sealed_draw_and_oracles_stand_apart():
     board = board_of(
         entries=[
             entry("top", ks(500, 500, 490)),  # 1490 / 1500
-            entry("close", ks(500, 500, 484)),  # 1484: Fisher does not separate it from `top`
+            entry("close", ks(500, 500, 484)),  # 1484: the by-fault test does not separate it from `top`
             entry("third", ks(500, 500, 440)),  # 1440: separated from `top`
             entry("oracle", ks(500, 500, 500), privileged=True),
             entry("public_hero", ks(400, 400, 400), public=ks(500, 500, 500)),
         ]
     )
-    assert fisher_exact([[1490, 10], [1484, 16]])[1] >= 0.05
-    assert fisher_exact([[1490, 10], [1440, 60]])[1] < 0.05
+
+    def strata(name: str) -> list[np.ndarray]:
+        e = next(x for x in board.entries if x.name == name)
+        return [
+            np.array(c.settled.by_fault) for c in e.sealed if c.sensor is None and c.fault_class != "loss"
+        ]
+
+    assert two_sample_by_fault(strata("top"), strata("close"), V1.n_seeds) >= 0.05
+    assert two_sample_by_fault(strata("top"), strata("third"), V1.n_seeds) < 0.05
     ranking = rank_board(board)
     order = [(r.entry.name, r.rank, r.tied) for r in ranking.deployable]
     assert order == [("top", 1, True), ("close", 1, True), ("third", 3, False), ("public_hero", 4, False)]
@@ -151,6 +165,36 @@ def test_tie_groups_follow_fisher_on_the_sealed_draw_and_oracles_stand_apart():
     assert "public_hero" not in [
         r.entry.name for r in ranking.deployable[:3]
     ]  # its public score ranks nothing
+    assert "exchanging whole faults" in ranking_rule(V1.ranked_classes, N)
+
+
+def test_clustered_outcomes_widen_the_by_fault_interval_and_can_merge_a_tie_group():
+    """The same counts, drawn all-or-nothing per fault (what a controller that cannot handle a
+    fault does): the Wilson interval is unchanged, the by-fault one is much wider, and two entries
+    Fisher's test would separate are tied by fault."""
+
+    def clustered(name: str, k: int) -> Entry:
+        e = entry(name, ks(k, k, k))
+        cells = []
+        for c in e.sealed:
+            passed = np.arange(N) < c.settled.k  # fault-major: the first faults settle all 10
+            stat = gate_stat(passed, fault_index=np.arange(N) // V1.n_seeds)
+            cells.append(c.model_copy(update={"settled": stat, "operational": stat, "touch_once": stat}))
+        return e.model_copy(update={"sealed": cells})
+
+    a, b = clustered("alpha", 350), clustered("beta", 300)
+    spread_a = pooled_settled(entry("spread", ks(350, 350, 350)).sealed, V1.ranked_classes)
+    pa, pb = pooled_settled(a.sealed, V1.ranked_classes), pooled_settled(b.sealed, V1.ranked_classes)
+    assert pa.interval == spread_a.interval
+    width = lambda iv: iv[1] - iv[0]  # noqa: E731
+    assert width(pa.interval_by_fault) > 2 * width(pa.interval)  # clustered: much wider than Wilson
+    assert width(spread_a.interval_by_fault) < 1.5 * width(spread_a.interval)  # spread: close to Wilson
+    assert fisher_exact([[pa.k, pa.n - pa.k], [pb.k, pb.n - pb.k]])[1] < 0.05
+    ranking = rank_board(board_of(entries=[a, b]))
+    assert [(r.entry.name, r.rank, r.tied) for r in ranking.deployable] == [
+        ("alpha", 1, True),
+        ("beta", 1, True),
+    ]
 
 
 def test_public_beating_sealed_beyond_the_intervals_is_flagged():
@@ -177,7 +221,8 @@ def test_renderings_say_how_they_rank_and_show_both_draws():
     assert "**Ranking:** RULE TEXT." in md and "Upper bounds" in md
     assert "| 1= | `beta` |" in md and "| 1= | `alpha` |" in md and "| 3 | `cheat` |" in md
     assert "50.0 [45.6, 54.4]" in md  # 250/500 with its Wilson interval
-    assert "public > sealed on sign, gain, gain_bias, mean" in md and "## Flagged" in md
+    assert "public above sealed on sign, gain, gain_bias, mean" in md and "## Flagged" in md
+    assert "exact two-sample test over faults" in md
     doc = json.loads(board_json(board))
     assert doc["version"] == 3
     standings = doc["standings"]["deployable"]

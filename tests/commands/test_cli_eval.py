@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from scftc_cli.commands.app import app
-from scftc_cli.statistics import design_effect, interval_by_fault
+from scftc_cli.statistics import PROFILE_TAUS_DEG, design_effect, interval_by_fault
 
 runner = CliRunner()
 
@@ -68,7 +68,9 @@ def test_json_output_has_the_contract_fields():
         # anyone can recompute the by-fault numbers from the per-fault counts in the document
         assert (low, high) == interval_by_fault(by_fault, cell["n"] // len(by_fault))
         assert cell[gate]["design_effect"] == design_effect(by_fault, cell["n"] // len(by_fault))
-    assert set(cell["final_error_deg"]) == {"median", "mean"}
+    assert set(cell["final_error_deg"]) == {"median", "mean", "profile"}
+    profile = cell["final_error_deg"]["profile"]  # episodes within each threshold: non-decreasing
+    assert len(profile) == len(PROFILE_TAUS_DEG) and profile == sorted(profile) and profile[-1] == cell["n"]
 
 
 def test_sensor_all_gives_six_cells_on_sign_faults():
