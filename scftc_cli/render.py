@@ -73,20 +73,46 @@ def _cell_row(cell: CellResult) -> list[str]:
     ]
 
 
-def eval_table(result: EvalResult) -> Table:
-    """``scftc eval``'s terminal table."""
+WIDE_COLUMNS = 130
+"""Below this terminal width ``eval``'s table keeps the settled columns only (the cell, k/n, both
+intervals and the design effect); ``--format markdown`` or ``json`` carry every column."""
+
+
+def eval_table(result: EvalResult, width: int = WIDE_COLUMNS) -> Table:
+    """``scftc eval``'s terminal table, for a terminal ``width`` columns wide."""
     from rich.table import Table
 
     flag = " (privileged: an upper bound, not ranked)" if result.privileged else ""
-    table = Table(
-        title=f"{result.controller}{flag} - {result.benchmark_version}, {result.backend}",
-        caption=INTERVALS_NOTE,
+    wide = width >= WIDE_COLUMNS
+    note = (
+        INTERVALS_NOTE
+        if wide
+        else f"{INTERVALS_NOTE} Operational, touch-once, final error: a wider terminal or --format markdown."
     )
-    for h in HEADERS:
-        table.add_column(h, justify="left" if h in ("split", "class", "sensor") else "right")
+    table = Table(
+        title=f"{result.controller}{flag} - {result.benchmark_version}, {result.backend}", caption=note
+    )
+    headers = HEADERS if wide else ("cell", *HEADERS[3:7])
+    for h in headers:
+        table.add_column(h, justify="left" if h in ("split", "class", "sensor", "cell") else "right")
     for cell in result.cells:
-        table.add_row(*_cell_row(cell))
+        row = _cell_row(cell)
+        table.add_row(*(row if wide else [f"{cell.split} {cell.label}", *row[3:7]]))
     return table
+
+
+def print_text(text: str) -> None:
+    """Print plain ``text`` on stdout, wrapped at the terminal's width (no markup)."""
+    from rich.console import Console
+
+    Console(highlight=False).print(text, markup=False)
+
+
+def terminal_width() -> int:
+    """Columns of the terminal stdout goes to (``COLUMNS`` or 80 when it is not a terminal)."""
+    from rich.console import Console
+
+    return Console().width
 
 
 INTERVALS_NOTE = (
@@ -103,6 +129,9 @@ def eval_markdown(result: EvalResult) -> str:
 
 
 def print_table(table: Table) -> None:
+    """Print ``table`` on stdout within the terminal's width (rich reads it from the terminal, or
+    ``COLUMNS``; 80 when output is not a terminal): columns shrink and cells wrap rather than spill
+    past the edge. ``--format markdown`` or ``json`` are the forms for wide reports and pipes."""
     from rich.console import Console
 
-    Console(soft_wrap=False, width=160).print(table)
+    Console(soft_wrap=False).print(table)

@@ -60,7 +60,7 @@ def eval_command(
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.evaluate import choose_controller, eval_result, evaluate_cells, planned_steps, select_cells
     from scftc_cli.records import collect_provenance, episode_rows, write_episode_log
-    from scftc_cli.render import eval_markdown, eval_table, print_table
+    from scftc_cli.render import eval_markdown, eval_table, print_table, terminal_width
     from scftc_cli.sim.testbed import check_backend
     from scftc_cli.spec import get_spec
     from scftc_cli.submission.local import NOTICE
@@ -100,7 +100,7 @@ def eval_command(
     elif fmt == "markdown":
         typer.echo(eval_markdown(result))
     else:
-        print_table(eval_table(result))
+        print_table(eval_table(result, terminal_width()))
 
 
 _ = Path  # typer resolves the Path annotations of the shared options at runtime

@@ -11,7 +11,7 @@ def list_command(benchmark: BenchmarkOption = DEFAULT) -> None:
     from rich.table import Table
 
     from scftc_cli.registry import registry
-    from scftc_cli.render import print_table
+    from scftc_cli.render import print_table, print_text
     from scftc_cli.spec import get_spec
 
     spec = get_spec(benchmark)
@@ -22,5 +22,5 @@ def list_command(benchmark: BenchmarkOption = DEFAULT) -> None:
     for entry in registry(spec.version).values():
         table.add_row(entry.name, "yes (oracle)" if entry.privileged else "no", entry.summary)
     print_table(table)
-    print("fault classes:", ", ".join(spec.fault_classes))
-    print(f"sensor faults (on {spec.sensor_base_class} faults):", ", ".join(spec.sensor_faults))
+    print_text(f"fault classes: {', '.join(spec.fault_classes)}")
+    print_text(f"sensor faults (on {spec.sensor_base_class} faults): {', '.join(spec.sensor_faults)}")

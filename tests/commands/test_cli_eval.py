@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 from typer.testing import CliRunner
@@ -127,3 +128,25 @@ def test_without_a_terminal_long_work_logs_plain_progress_lines_and_short_work_n
         progress.advance(1)  # within LOG_EVERY_S of the first line: not written
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and lines[0].endswith("long job: 40%"), lines
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["list"],
+        ["list", "--benchmark", "scftc-v2"],
+        ["eval", "--controller", "pd", "--class", "all", "--n-faults", "2", "--n-seeds", "1"],
+        ["compare", "pd", "teacher", "--class", "all", "--n-faults", "2", "--n-seeds", "1"],
+    ],
+)
+def test_terminal_output_fits_an_80_column_terminal(args: list[str]):
+    import subprocess
+    import sys
+
+    env = {**os.environ, "COLUMNS": "80"}
+    out = subprocess.run(
+        [sys.executable, "-m", "scftc_cli", *args], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert out.returncode == 0, out.stderr
+    widest = max(len(line) for line in out.stdout.splitlines())
+    assert widest <= 80, (widest, out.stdout)
