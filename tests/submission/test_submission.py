@@ -7,6 +7,7 @@ each. Attacks on the sandbox itself live in ``tests/security``.
 
 from __future__ import annotations
 
+import json
 import subprocess
 import tempfile
 import textwrap
@@ -536,3 +537,28 @@ def test_a_full_size_submission_lands_through_the_sandbox(tmp_path: Path, board:
     assert result.exit_code == 0, result.output
     assert "added `pd_plus_sandboxed`" in result.stdout
     assert load_submission(path).sha256 in board.read_text()
+
+
+@needs_sandbox
+@pytest.mark.slow
+def test_out_of_range_commands_are_clipped_on_every_path(tmp_path: Path, board: Path):
+    """One rule, as docs/submitting.md says: the simulator clips every command to [-1, 1]. A
+    controller that returns 2.0 is flown, not crashed, by eval, a dry run and a landing run alike,
+    and gets the same numbers as the same law clipped by itself."""
+    law = "u = -4.0 * obs[:, :3] - 8.0 * obs[:, 3:]\nu = np.where(np.abs(u) > 0.5, 2.0 * np.sign(u), u)\n"
+    (tmp_path / "tame").mkdir()
+    loud = write_submission(tmp_path, act=law + "return u", name="loud")
+    tame = write_submission(tmp_path / "tame", act=law + "return np.clip(u, -1.0, 1.0)", name="tame")
+    sizes = ["--class", "all", "--n-faults", "3", "--n-seeds", "2", "--format", "json"]
+    flown = []
+    for file in (loud, tame):
+        result = runner.invoke(app, ["eval", "--controller-file", str(file), *sizes])
+        assert result.exit_code == 0, result.output
+        cells = json.loads(result.stdout)["cells"]
+        flown.append([(c["class"], c["settled"]["k"], c["final_error_deg"]["median"]) for c in cells])
+    assert flown[0] == flown[1]
+    result = submit(loud, board, "--n-faults", "3", "--n-seeds", "2", "--dry-run")
+    assert result.exit_code == 0, result.output
+    result = submit(loud, board, dry_run=False)  # the landing run: whole-cell determinism check included
+    assert result.exit_code == 0, result.output
+    assert "added `loud`" in result.stdout
