@@ -53,13 +53,28 @@ app.add_typer(leaderboard_app, name="leaderboard")
 app.command("schemas")(schemas_command)
 
 
+INTERRUPTED = "interrupted: nothing was half-written (every file is replaced whole or not at all)"
+
+
+class Interrupted(SystemExit):
+    """Ctrl-C or SIGTERM: unwinds every ``with`` block like any exit, then says so in one line."""
+
+
 def main() -> None:
-    """The ``scftc`` entry point. SIGTERM unwinds like Ctrl-C (every ``with`` block cleans up: a
-    sandbox is stopped, a temporary file removed) instead of killing the process mid-write."""
+    """The ``scftc`` entry point. Ctrl-C and SIGTERM unwind the command (every ``with`` block cleans
+    up: a sandbox is stopped, a temporary file removed) instead of killing it mid-write, and end with
+    one line on stderr, not a traceback, and the shell's status for the signal (130, 143)."""
     import signal
+    import sys
 
-    def terminate(signum: int, _frame: object) -> None:
-        raise SystemExit(128 + signum)
+    def interrupt(signum: int, _frame: object) -> None:
+        raise Interrupted(128 + signum)
 
-    signal.signal(signal.SIGTERM, terminate)
-    app()
+    signal.signal(signal.SIGTERM, interrupt)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where SIGINT is ignored
+        signal.signal(signal.SIGINT, interrupt)
+    try:
+        app()
+    except Interrupted:
+        print(INTERRUPTED, file=sys.stderr)
+        raise

@@ -41,6 +41,30 @@ BenchmarkOption = Annotated[
         show_default=True,
     ),
 ]
+FileBenchmarkOption = Annotated[
+    str | None,
+    typer.Option(
+        "--benchmark",
+        help=f"Benchmark version: {' or '.join(SPECS)} [default: the one a submission file declares "
+        f"(SUBMISSION['benchmark']), else {DEFAULT_BENCHMARK}].",
+        show_default=False,
+    ),
+]
+
+
+def benchmark_of(given: str | None, *files: Path | str | None) -> str:
+    """The benchmark a command runs: ``--benchmark`` if given, else the one the first submission
+    file among ``files`` declares in its manifest (read without running it), else the default."""
+    if given is not None:
+        return given
+    for file in files:
+        if file is not None and str(file).endswith(".py") and Path(file).is_file():
+            from scftc_cli.submission.manifest import load_submission
+
+            return load_submission(Path(file)).manifest.benchmark
+    return DEFAULT_BENCHMARK
+
+
 BoardOption = Annotated[
     Path | None,
     typer.Option(

@@ -9,9 +9,9 @@ from typing import Annotated
 import typer
 
 from scftc_cli.commands.common import (
-    DEFAULT,
-    BenchmarkOption,
     CellsOptions,
+    FileBenchmarkOption,
+    benchmark_of,
     exits_cleanly,
     note_line,
     progress_bar,
@@ -30,7 +30,7 @@ def compare_command(
         str, typer.Argument(metavar="A", help="A built-in controller name, or a .py submission file.")
     ],
     b: Annotated[str, typer.Argument(metavar="B", help="The other one.")],
-    benchmark: BenchmarkOption = DEFAULT,
+    benchmark: FileBenchmarkOption = None,
     fault_class: CellsOptions.fault_class = None,
     sensor: CellsOptions.sensor = None,
     split: CellsOptions.split = "test",
@@ -57,7 +57,7 @@ def compare_command(
     from scftc_cli.study.compare import compare
     from scftc_cli.submission.local import NOTICE
 
-    spec = get_spec(benchmark)
+    spec = get_spec(benchmark_of(benchmark, a, b))
     choices = []
     for given in (a, b):
         if given.endswith(".py"):

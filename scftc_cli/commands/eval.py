@@ -10,15 +10,15 @@ from typing import Annotated
 import typer
 
 from scftc_cli.commands.common import (
-    DEFAULT,
-    BenchmarkOption,
     CellsOptions,
     ControllerFileOption,
     ControllerOption,
+    FileBenchmarkOption,
     LogEpisodesOption,
     ParamsOption,
     SchedulerOption,
     WorkersOption,
+    benchmark_of,
     exits_cleanly,
     note_line,
     progress_bar,
@@ -38,7 +38,7 @@ def eval_command(
     controller: ControllerOption = None,
     controller_file: ControllerFileOption = None,
     params: ParamsOption = None,
-    benchmark: BenchmarkOption = DEFAULT,
+    benchmark: FileBenchmarkOption = None,
     fault_class: CellsOptions.fault_class = None,
     sensor: CellsOptions.sensor = None,
     split: CellsOptions.split = "test",
@@ -65,7 +65,7 @@ def eval_command(
     from scftc_cli.spec import get_spec
     from scftc_cli.submission.local import NOTICE
 
-    spec = get_spec(benchmark)
+    spec = get_spec(benchmark_of(benchmark, controller_file))
     choice = choose_controller(spec, controller, controller_file, params)
     if controller_file is not None:
         note_line(f"{controller_file.name} {NOTICE}")

@@ -10,9 +10,9 @@ from typing import Annotated
 import typer
 
 from scftc_cli.commands.common import (
-    DEFAULT,
-    BenchmarkOption,
     BoardOption,
+    FileBenchmarkOption,
+    benchmark_of,
     caps_notice,
     exits_cleanly,
     progress_bar,
@@ -25,7 +25,7 @@ _LIMITS = SandboxLimits()
 @exits_cleanly
 def submit_command(
     file: Annotated[Path, typer.Argument(help="The submission: one .py file with a SUBMISSION manifest.")],
-    benchmark: BenchmarkOption = DEFAULT,
+    benchmark: FileBenchmarkOption = None,
     leaderboard: BoardOption = None,
     dry_run: Annotated[
         bool,
@@ -75,7 +75,7 @@ def submit_command(
     from scftc_cli.render import pct
     from scftc_cli.spec import get_spec
 
-    spec = get_spec(benchmark)
+    spec = get_spec(benchmark_of(benchmark, file))
     if not dry_run and (n_faults is not None or n_seeds is not None):
         raise UsageError("--n-faults and --n-seeds are for --dry-run only: a board holds full-size entries")
     if seal and dry_run:

@@ -4,6 +4,7 @@ with exit 2 naming the versions."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -88,3 +89,19 @@ def test_a_v2_observation_of_the_wrong_width_is_rejected_in_one_line(tmp_path: P
     line = _one_error_line(result)
     assert line.startswith("error:") and "(1, 4)" in line
     assert board.read_bytes() == before
+
+
+@needs_sandbox
+def test_without_benchmark_a_file_flies_the_version_its_manifest_declares(board: Path):
+    """``--benchmark`` may be left out for a submission file: its SUBMISSION['benchmark'] decides."""
+    tiny = ["--n-faults", "1", "--n-seeds", "1", "--format", "json"]
+    for command in (
+        ["eval", "--controller-file", str(V2_EXAMPLE), *tiny],
+        ["compare", str(V2_EXAMPLE), "pd", *tiny],
+    ):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 0, (command, result.output)
+        assert json.loads(result.stdout)["benchmark_version"] == "scftc-v2", command
+    result = runner.invoke(app, ["submit", str(V2_EXAMPLE), "--leaderboard", str(board), *TINY])
+    assert result.exit_code == 0, result.output
+    assert "friction" in result.stdout  # a v2 class: the v2 cells were flown
