@@ -34,15 +34,70 @@ def utc_now() -> str:
     return dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+PUBLISHED = PACKAGE_DIR / "published"
+"""The published boards as package data (``scftc_cli/published`` is a link to the checkout's
+``leaderboard/``, copied into every wheel): what an installed package reads by default."""
+
+
 def repo_root() -> Path:
-    return Path(__file__).resolve().parent.parent.parent
+    return PACKAGE_DIR.parent
 
 
-def default_board_path(benchmark: str) -> Path:
-    """``leaderboard/<benchmark>.json`` under the current directory if there is one, else the
-    checkout's."""
-    local = Path("leaderboard") / f"{benchmark}.json"
-    return local if local.exists() else repo_root() / "leaderboard" / f"{benchmark}.json"
+def checkout_root() -> Path | None:
+    """The repository this package runs from (an editable install or the source tree), or
+    ``None`` when it is an installed copy (in site-packages, with no ``leaderboard/`` beside it)."""
+    root = repo_root()
+    return root if (root / "pyproject.toml").is_file() and (root / "leaderboard").is_dir() else None
+
+
+def user_board_dir() -> Path:
+    """Where an installed package writes a user's boards unless told otherwise:
+    ``$XDG_DATA_HOME/scftc/leaderboard`` (``~/.local/share/scftc/leaderboard``)."""
+    data = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(data) / "scftc" / "leaderboard"
+
+
+def default_board_path(benchmark: str, *, writing: bool = False) -> Path:
+    """The board a command uses when not given ``--leaderboard``.
+
+    ``leaderboard/<benchmark>.json`` under the current folder if it exists; else, in a checkout,
+    the checkout's; else (an installed package) the published snapshot for reading and the user's
+    board folder (``user_board_dir``) for writing, never the package itself.
+    """
+    name = f"{benchmark}.json"
+    local = Path("leaderboard") / name
+    if local.exists():
+        return local
+    root = checkout_root()
+    if root is not None:
+        return root / "leaderboard" / name
+    return user_board_dir() / name if writing else PUBLISHED / name
+
+
+def where(path: Path) -> str:
+    """``path``, and what it is when it is not a file the user named: the published snapshot."""
+    path = Path(path)
+    if checkout_root() is None and path.resolve().is_relative_to(PACKAGE_DIR):
+        from scftc_cli import __version__
+
+        return f"{path} (the published snapshot shipped with scftc {__version__}; read-only)"
+    return str(path)
+
+
+def refuse_package_path(path: Path) -> None:
+    """Refuse to write a board inside the installed package (site-packages, or the package folder
+    of a checkout): a board is written only where the user says, or in ``user_board_dir``."""
+    import sysconfig
+
+    real = Path(path).resolve()
+    protected = {PACKAGE_DIR} | {Path(sysconfig.get_path(k)).resolve() for k in ("purelib", "platlib")}
+    for top in protected:
+        if real.is_relative_to(top):
+            raise LeaderboardError(
+                f"{path} lies inside the installed package ({top}); boards are written only where you say: "
+                f"--leaderboard PATH (by default {user_board_dir()} for an installed package)"
+            )
 
 
 def default_submissions_dir(board_path: Path) -> Path:
@@ -149,6 +204,7 @@ def update_board(
 ) -> Leaderboard:
     """Apply ``change`` to the current board under the lock; write it with ``version + 1``."""
     path = Path(path)
+    refuse_package_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         with FileLock(f"{path}.lock", timeout=lock_timeout_s):

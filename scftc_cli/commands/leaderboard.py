@@ -24,6 +24,7 @@ from scftc_cli.commands.common import (
     WorkersOption,
     caps_notice,
     exits_cleanly,
+    note_line,
     progress_bar,
     stderr,
 )
@@ -57,7 +58,9 @@ def _explicit(ctx: typer.Context, name: str) -> bool:
     return source is not None and source.name != "DEFAULT"
 
 
-def _resolve(ctx: typer.Context, leaderboard: Path | None, benchmark: str | None) -> tuple[Path, str]:
+def _resolve(
+    ctx: typer.Context, leaderboard: Path | None, benchmark: str | None, *, writing: bool = True
+) -> tuple[Path, str]:
     """The board file and benchmark a subcommand acts on, from its own options or the group's."""
     from scftc_cli.board.store import default_board_path
 
@@ -72,7 +75,7 @@ def _resolve(ctx: typer.Context, leaderboard: Path | None, benchmark: str | None
             )
         picked[name] = own if own is not None else before
     bench = picked["benchmark"] or DEFAULT
-    return (picked["leaderboard"] or default_board_path(bench)), bench
+    return (picked["leaderboard"] or default_board_path(bench, writing=writing)), bench
 
 
 @leaderboard_app.callback(invoke_without_command=True)
@@ -103,7 +106,7 @@ def show_command(
         }
         return
     from scftc_cli.board.render import render_board
-    from scftc_cli.board.store import default_board_path, read_board, write_text_atomically
+    from scftc_cli.board.store import default_board_path, read_board, where, write_text_atomically
 
     fmt = BoardFormat(output_format).value
     if fmt == "html":
@@ -116,7 +119,10 @@ def show_command(
             boards = [read_board(default_board_path(v), v) for v in SPECS if default_board_path(v).exists()]
         text = board_html(boards)
     else:
-        text = render_board(read_board(leaderboard or default_board_path(benchmark), benchmark), fmt)
+        path = leaderboard or default_board_path(benchmark)
+        if leaderboard is None:
+            note_line(f"board: {where(path)}")
+        text = render_board(read_board(path, benchmark), fmt)
         text = text if text.endswith("\n") else text + "\n"
     if out is None:
         typer.echo(text, nl=False)
@@ -183,7 +189,7 @@ def verify_command(
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.spec import get_spec
 
-    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    board_path, bench = _resolve(ctx, leaderboard, benchmark, writing=False)
     spec = get_spec(bench)
     board = read_board(board_path, bench)
     trusted = read_board(base, bench) if base is not None else None
@@ -246,10 +252,11 @@ def keygen_command(
     from scftc_cli.errors import UsageError
 
     target = path.expanduser().resolve()
-    if target.is_relative_to(repo_root().resolve()) or target.is_relative_to(Path.cwd().resolve()):
+    repository = next((p for p in target.parents if (p / ".git").exists()), None)
+    if repository is not None or target.is_relative_to(repo_root().resolve()):
         raise UsageError(
-            f"{path} lies inside the repository or the current folder; a round key lives outside it "
-            "(e.g. ~/.config/scftc/round.key)"
+            f"{path} lies inside a repository ({repository or repo_root()}); a round key lives outside "
+            "every repository (e.g. ~/.config/scftc/round.key), never where a commit could carry it"
         )
     write_key(target)
     typer.echo(f"wrote a new round key to {target} (mode 0600)")

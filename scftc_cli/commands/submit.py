@@ -83,7 +83,7 @@ def submit_command(
     if key_file is not None and not seal:
         raise UsageError("--key-file goes with --seal")
     key = read_key(key_file) if seal else None
-    board_path = leaderboard or default_board_path(spec.version)
+    board_path = leaderboard or default_board_path(spec.version, writing=not dry_run)
     limits = replace(
         _LIMITS, step_timeout_s=step_timeout, total_wall_s=total_wall, cpu_s=cpu_s, memory_mb=memory_mb
     )

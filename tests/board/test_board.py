@@ -463,3 +463,21 @@ def test_sigterm_during_a_write_unwinds_and_leaves_no_temporary_file(board: Path
     assert proc.wait(30) == 128 + signal.SIGTERM
     assert not list(board.parent.glob(".scftc-v1.json.*.tmp"))  # removed by the exiting writer itself
     assert board.read_bytes() == before
+
+
+def test_a_round_key_is_written_0600_outside_every_repository_and_never_overwritten(tmp_path: Path):
+    key = tmp_path / "keys" / "round.key"
+    result = runner.invoke(app, ["leaderboard", "keygen", str(key)])
+    assert result.exit_code == 0, result.output
+    assert key.stat().st_mode & 0o777 == 0o600 and len(bytes.fromhex(key.read_text().strip())) == 32
+    before = key.read_bytes()
+    assert runner.invoke(app, ["leaderboard", "keygen", str(key)]).exit_code == 1  # never overwritten
+    assert key.read_bytes() == before
+    inside = Path(__file__).resolve().parents[2] / "a-round.key"
+    result = runner.invoke(app, ["leaderboard", "keygen", str(inside)])
+    assert result.exit_code == 2 and "inside a repository" in result.stderr and not inside.exists()
+    key.chmod(0o644)
+    result = runner.invoke(
+        app, ["leaderboard", "open", "--leaderboard", str(tmp_path / "b.json"), "--key-file", str(key)]
+    )
+    assert result.exit_code == 1 and "chmod 600" in result.stderr
