@@ -18,10 +18,12 @@ EXAMPLE = ROOT / "examples" / "train_ppo_and_submit.py"
 
 
 @pytest.mark.slow
-def test_train_export_and_dry_run(tmp_path: Path):
+@pytest.mark.parametrize("benchmark", ["scftc-v1", "scftc-v2"])
+def test_train_export_and_dry_run(tmp_path: Path, benchmark: str):
     pytest.importorskip("stable_baselines3")
     out = tmp_path / "tiny_ppo.py"
     command = [sys.executable, str(EXAMPLE), "--timesteps", "2048", "--num-envs", "8", "--name", "tiny_ppo"]
+    command += ["--benchmark", benchmark]
     command += ["--out", str(out), "--dry-run-size", "2", "1"]
     scratch = tmp_path / "tmp"
     scratch.mkdir()
@@ -29,9 +31,12 @@ def test_train_export_and_dry_run(tmp_path: Path):
     result = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     assert not list(scratch.glob("SB3-*"))  # stable-baselines3 leaves no log folder behind
+    assert "Warning" not in result.stderr, result.stderr  # nothing unrelated on the way
+    assert f"trained 2048 environment steps of PPO on {benchmark}'s train split" in result.stderr
     assert f"wrote {out}" in result.stdout
     assert "public draw:" in result.stdout and "dry run: every check passed; nothing written" in result.stdout
     sub = load_submission(out)  # one valid file: its sha256 covers the weights inside it
     assert sub.manifest.name == "tiny_ppo" and "WEIGHTS" in sub.source.decode()
+    assert sub.manifest.benchmark == benchmark
     assert sub.sha256 == hashlib.sha256(out.read_bytes()).hexdigest()
     assert not any(m.split(".")[0] == "torch" for m in sub.imports)  # numpy alone in the sandbox
