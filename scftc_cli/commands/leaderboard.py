@@ -343,6 +343,57 @@ def seal_command(
     )
 
 
+@leaderboard_app.command("land")
+@exits_cleanly
+def land_command(
+    folder: Annotated[
+        Path, typer.Argument(help="Folder of submitted files, searched recursively for *.py.")
+    ] = Path("submissions"),
+    seal: Annotated[
+        bool, typer.Option("--seal", help="Then seal every board that holds pending entries.")
+    ] = False,
+    key_file: KeyFileOption = None,
+) -> None:
+    """Submit every file under FOLDER that is not yet on its version's board (found by sha256) as
+    a pending entry of the open round, each on the board of the version its manifest declares
+    (maintainers, after merging pull requests that add submissions). With --seal, then seal the
+    boards that hold pending entries. A rejected file is reported and the others go on; the
+    command exits 1 if any was rejected."""
+    from scftc_cli.board.flights import Scoring
+    from scftc_cli.board.ops import land
+    from scftc_cli.board.ops import seal as seal_round
+    from scftc_cli.board.rounds import read_key
+    from scftc_cli.board.store import default_board_path, read_board
+    from scftc_cli.errors import LeaderboardError
+    from scftc_cli.spec import SPECS, get_spec
+
+    key = read_key(key_file) if seal else None
+    files = sorted(folder.rglob("*.py"))
+    caps_notice()
+
+    def said(name: str, outcome: str) -> None:
+        stderr.print(f"{escape(name)}: {escape(outcome)}", highlight=False, soft_wrap=True)
+
+    report = land(files, lambda v: Scoring(get_spec(v)), lambda v: default_board_path(v, writing=True), said)
+    typer.echo(
+        f"landed {len(report.landed)} of {len(files)} files ({len(report.known)} already on their boards, "
+        f"{len(report.rejected)} rejected)"
+    )
+    if key is not None:
+        for version in SPECS:
+            path = default_board_path(version, writing=True)
+            if not path.exists() or not any(e.status == "pending" for e in read_board(path, version).entries):
+                continue
+            result = seal_round(path, Scoring(get_spec(version)), key, on_entry=_report_entry)
+            _says_where(
+                path,
+                result.board.version,
+                f"sealed round {result.round}: {len(result.sealed)} sealed, {len(result.failed)} failed",
+            )
+    if report.rejected:
+        raise LeaderboardError(f"rejected: {', '.join(report.rejected)} (reasons above)")
+
+
 @leaderboard_app.command("abandon")
 @exits_cleanly
 def abandon_command(

@@ -287,3 +287,26 @@ def test_an_abandoned_round_is_never_revealed_and_its_entries_move_on(tmp_path: 
 
         mp.setattr(verifying, "registry", lambda _benchmark=None: {})
         assert verify(board, Scoring(V1)).ok
+
+
+@pytest.mark.slow
+def test_land_submits_what_is_new_and_seals(tmp_path: Path, key_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """What the seal workflow runs after pull requests were merged: every new file lands pending
+    on the board its manifest names, a bad file is reported without stopping the others, a file
+    already on the board is left alone, and --seal seals the boards that hold pending entries."""
+    board = _board_folder(tmp_path)
+    monkeypatch.chdir(tmp_path)  # leaderboard/ and submissions/ of this folder
+    assert _invoke("leaderboard", "open", "--key-file", key_path).exit_code == 0
+    shutil.copy(EXAMPLE, tmp_path / "submissions" / "pd_plus.py")
+    (tmp_path / "submissions" / "broken.py").write_text("SUBMISSION = {'name': 'broken'}\n")
+    result = _invoke("leaderboard", "land")
+    assert result.exit_code == 1 and "landed 1 of 2 files" in result.stdout
+    assert "broken.py: rejected" in result.stderr
+    assert [(e.name, e.status) for e in store.read_board(board, V1.version).entries] == [
+        ("pd_plus", "pending")
+    ]
+    (tmp_path / "submissions" / "broken.py").unlink()
+    result = _invoke("leaderboard", "land", "--seal", "--key-file", key_path)
+    assert result.exit_code == 0, result.output
+    assert "already on the board" in result.stderr and "sealed round 1: 1 sealed, 0 failed" in result.stdout
+    assert store.read_board(board, V1.version).entry("pd_plus").status == "sealed"  # type: ignore[union-attr]
