@@ -11,6 +11,8 @@ import os
 
 import pytest
 
+import scftc_cli  # noqa: F401  (pins the numerical kernels before any test module imports numpy)
+
 FORBID = os.environ.get("SCFTC_FORBID_SKIPS") == "1"
 
 

@@ -121,6 +121,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from scftc_cli import PINNED_NUMERICS
 from scftc_cli.submission import cgroups
 from scftc_cli.submission.limits import SandboxLimits
 
@@ -345,6 +346,7 @@ def bwrap_argv(
         "PYTHONHASHSEED": "0",
         "PYTHONPATH": SITE,
         **{v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+        **{k: os.environ.get(k, v) for k, v in PINNED_NUMERICS.items()},  # the same kernels as the host's
     }
     for key, value in env.items():
         argv += ["--setenv", key, value]
