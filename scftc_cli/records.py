@@ -45,7 +45,8 @@ class GateStat(BaseModel):
     interval_by_fault: tuple[float, float] | None = Field(
         default=None,
         description="By-fault 95 % interval [low, high] of the rate: the percentile interval of the exact "
-        "cluster bootstrap over faults; at k = 0 or k = n the Wilson interval of 0 or all of the faults.",
+        "cluster bootstrap over faults, never narrower than Wilson's; at k = 0 or k = n the Wilson interval "
+        "of 0 or all of the faults (docs/statistics.md).",
     )
     design_effect: float | None = Field(
         default=None,

@@ -180,10 +180,10 @@ def interval_by_fault(counts: Counts, seeds: int, *, confidence: float = 0.95) -
     which every fault is all-or-nothing (design effect ``seeds``): [0, 7.1] % at ``k = 0`` for
     50 faults, against Wilson's [0, 0.8] % over 500 independent episodes.
 
-    Coverage (docs/statistics.md has the simulation): at 50 faults x 10 seeds, with per-fault
-    probabilities spread from none to nearly all-or-nothing, it covers 94-98 % of the time at
-    rates of 10 % and above, where Wilson's covers as little as 47 %; it undercovers (down to about
-    86 %) when only a handful of faults pass any episode.
+    Coverage (``benchmarks/by_fault_coverage.py``; docs/statistics.md): on simulated 50 x 10 cells
+    whose per-fault probabilities range from all alike to all-or-nothing, it covers the class's rate
+    92-96 % of the time at rates of 10 % and above, where Wilson's covers 47-95 %; at 2-5 %, where
+    only a handful of faults settle anything, 85-98 % (Wilson's 40-96 %).
 
     Args:
         counts: ``(n_faults,)`` int passing episodes per fault, or ``(n_strata, n_faults)`` (a list

@@ -563,6 +563,10 @@ def fdir_detection(detections: Sequence[Detection], colors: dict[str, tuple] | N
     return fig
 
 
+PROFILE_TICKS_DEG = (0.01, 0.1, 1.0, 10.0, 100.0)
+PERCENT_TICKS = (0, 25, 50, 75, 100)
+
+
 def _panel_grid(columns: list[str], width: float = 4.6, height: float = 3.3) -> tuple[Figure, np.ndarray]:
     """A grid of panels, one per class (three across), the unused ones hidden."""
     across = min(3, len(columns))
@@ -617,9 +621,13 @@ def final_error_profile(
         ax.axvline(spec.gates.operational_deg, color="grey", linestyle=":", linewidth=1.0)
         ax.set_xscale("log")
         ax.set_xlim(taus[0], taus[-1])
+        # fixed ticks, no minor ones: tick placement is most of the cost of drawing many panels
+        ax.set_xticks(PROFILE_TICKS_DEG, [f"{t:g}" for t in PROFILE_TICKS_DEG])
+        ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+        ax.set_yticks(PERCENT_TICKS)
         ax.set_ylim(-2, 102)
         ax.set_title(column, fontsize=10)
-        ax.grid(alpha=0.3, which="both", linewidth=0.4)
+        ax.grid(alpha=0.3, linewidth=0.4)
     for ax in axes[-1]:
         ax.set_xlabel("tau (deg, log)")
     for ax in axes[:, 0]:
@@ -680,6 +688,8 @@ def settling_time(
                 **_line_style(privileged.get(name, False)),
             )
         ax.set_xlim(0, end_s)
+        ax.set_xticks(np.linspace(0, end_s, 5))
+        ax.set_yticks(PERCENT_TICKS)
         ax.set_ylim(-2, 102)
         ax.set_title(column, fontsize=10)
         ax.grid(alpha=0.3, linewidth=0.4)
@@ -738,8 +748,8 @@ def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
 
 
 def write_figures(study: Study, out_dir: Path) -> list[Path]:
-    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES`` (the last two over every
-    controller and class the battery and sensor table flew), then on a version with
+    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES`` (the last two over the
+    battery's classes, which every controller flew), then on a version with
     mid-flight onsets ``settled_vs_onset`` and, where ``fdir``'s detector was measured,
     ``fdir_detection``."""
     battery = study.battery.results
@@ -755,7 +765,7 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
         ),
     }
     privileged = {r.controller: r.privileged for r in battery}
-    outcomes, columns = cell_outcomes(study), outcome_columns(study)
+    outcomes, columns = cell_outcomes(study), outcome_columns(study, flown_by_all=True)
     figures["final_error_profile"] = final_error_profile(study.spec, outcomes, columns, privileged, colors)
     figures["settling_time"] = settling_time(study.spec, outcomes, columns, privileged, colors)
     if has_onset(study.spec):

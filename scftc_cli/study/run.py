@@ -222,10 +222,11 @@ def cell_outcomes(study: Study) -> dict[str, dict[str, EpisodeOutcomes]]:
     }
 
 
-def outcome_columns(study: Study) -> list[str]:
-    """The columns of ``cell_outcomes`` that some controller flew: the actuator classes, then the
-    sensor faults."""
-    flown = {column for cells in cell_outcomes(study).values() for column in cells}
+def outcome_columns(study: Study, *, flown_by_all: bool = False) -> list[str]:
+    """The columns of ``cell_outcomes`` that some controller flew (with ``flown_by_all``: that
+    every controller flew, i.e. the battery's), the actuator classes first, then the sensor faults."""
+    cells = [set(c) for c in cell_outcomes(study).values()]
+    flown = set.intersection(*cells) if flown_by_all else set.union(*cells)
     return [c for c in (*study.spec.fault_classes, *study.spec.sensor_faults) if c in flown]
 
 

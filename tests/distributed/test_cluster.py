@@ -50,7 +50,15 @@ def _serial(name: str, n_faults: int, n_seeds: int):
 def _same(a, b) -> None:
     for x, y in zip(a, b, strict=True):
         assert x.result == y.result
-        for field in ("settled", "operational", "touch_once", "final_error_deg", "settling_time_s"):
+        for field in (
+            "settled",
+            "operational",
+            "touch_once",
+            "final_error_deg",
+            "settling_time_s",
+            "dwell_max_error_deg",
+            "fault_index",  # ragged chunks cross fault boundaries: each episode keeps its fault
+        ):
             np.testing.assert_array_equal(
                 getattr(x.outcomes, field), getattr(y.outcomes, field), err_msg=field
             )
