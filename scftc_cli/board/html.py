@@ -128,7 +128,8 @@ ol.legend li.dim { opacity: .35; }
 ol.legend .rank { color: var(--muted); width: 2.2em; text-align: right; font-variant-numeric: tabular-nums; }
 ol.legend .at-gate { color: var(--muted); margin-left: auto; padding-left: 10px;
                      font-variant-numeric: tabular-nums; }
-.legend-head { font-size: 12px; color: var(--muted); display: flex; justify-content: space-between; }
+.legend-head { font-size: 12px; color: var(--muted); display: flex; justify-content: space-between;
+               gap: 16px; }
 ul.failed li, ul.flagged li { margin: 4px 0; max-width: 1100px; }
 ol.history { font-size: 12.5px; color: var(--ink); padding-left: 22px; }
 ol.history li { margin: 1px 0; }
@@ -277,7 +278,7 @@ def _link_or_text(url: str) -> str:
     """A link for an ``http(s)://`` URL, the URL as plain text for anything else."""
     if SAFE_URL.match(url):
         return f'<a href="{esc(url)}" rel="noopener noreferrer">{esc(url)}</a>'
-    return f"{esc(url)} <span class='ci'>(not an http(s) address: not a link)</span>"
+    return f"{esc(url)} <span class='ci'>(not a plain http(s) address: shown, not linked)</span>"
 
 
 def _meta(e: Entry) -> str:
@@ -401,6 +402,11 @@ def _heads(headers: Sequence[tuple[str, str, str]]) -> str:
     return "<thead><tr>" + "".join(out) + "</tr></thead>"
 
 
+def _class_sub(draw: str, fault_class: str, ranked: Sequence[str]) -> str:
+    """A class column's second header line: its draw, and whether the class counts in the rank."""
+    return draw if fault_class in ranked else f"{draw}, unranked"
+
+
 def _ranked_table(rows: list[Ranked], spec: BenchmarkSpec, ranking: Ranking, *, oracle: bool) -> str:
     """Deployable entries (``oracle=False``: rank, flag) or the oracles: each a ``<tbody>`` of its
     row and its hidden details, so that sorting moves the two together."""
@@ -410,7 +416,7 @@ def _ranked_table(rows: list[Ranked], spec: BenchmarkSpec, ranking: Ranking, *, 
         ("controller", "", ""),
         ("sealed settled", f"pooled over {', '.join(ranked)}", ""),
         ("public", "same classes", ""),
-        *((c, "sealed", "heat-head") for c in spec.fault_classes),
+        *((c, _class_sub("sealed", c, ranked), "heat-head") for c in spec.fault_classes),
     ]
     headers += [] if oracle else [("flag", "", "")]
     headers.append(("", "", ""))
@@ -482,7 +488,7 @@ def _pending_table(board: Leaderboard, ranking: Ranking, spec: BenchmarkSpec) ->
         ("controller", "", ""),
         ("round", "", ""),
         ("public settled", f"pooled over {', '.join(ranked)}", ""),
-        *((c, "public", "heat-head") for c in spec.fault_classes),
+        *((c, _class_sub("public", c, ranked), "heat-head") for c in spec.fault_classes),
         ("", "", ""),
     ]
     bodies = []

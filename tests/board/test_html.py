@@ -332,6 +332,7 @@ def test_both_committed_boards_fit_a_1400_px_window(driver: WebDriver, tmp_path:
 @pytest.mark.browser
 @browser
 def test_the_profile_chart_draws_each_ranked_entrys_pooled_profile(driver: WebDriver, tmp_path: Path):
+    from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
     load(driver, tmp_path, committed_page())
@@ -359,6 +360,14 @@ def test_the_profile_chart_draws_each_ranked_entrys_pooled_profile(driver: WebDr
             np.testing.assert_allclose(taus, PROFILE_TAUS_DEG, rtol=1e-3)
             np.testing.assert_allclose(shown, expected, atol=1e-3)
         assert "docs/statistics.md" in chart.find_element(By.XPATH, "..").text  # the how-to-read note
+        # hovering a name in the legend picks out its line
+        ActionChains(driver).move_to_element(
+            chart.find_elements(By.CSS_SELECTOR, "ol.legend li")[1]
+        ).perform()
+        dimmed = ["dim" in (line.get_attribute("class") or "").split() for line in lines]
+        assert dimmed == [i != 1 for i in range(len(lines))]
+        ActionChains(driver).move_to_element(area).perform()  # and leaving it shows every line again
+        assert not any("dim" in (line.get_attribute("class") or "").split() for line in lines)
 
 
 @pytest.mark.browser
