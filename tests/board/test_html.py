@@ -366,7 +366,8 @@ def test_the_profile_chart_draws_each_ranked_entrys_pooled_profile(driver: WebDr
         ).perform()
         dimmed = ["dim" in (line.get_attribute("class") or "").split() for line in lines]
         assert dimmed == [i != 1 for i in range(len(lines))]
-        ActionChains(driver).move_to_element(area).perform()  # and leaving it shows every line again
+        heading = chart.find_element(By.XPATH, "../h3")  # leaving it (for no line) shows every line again
+        ActionChains(driver).move_to_element(heading).perform()
         assert not any("dim" in (line.get_attribute("class") or "").split() for line in lines)
 
 
