@@ -252,7 +252,7 @@ def _bar(p: Pooled, oracle: bool) -> str:
 
 def _pooled_cell(p: Pooled, *, bar: bool, oracle: bool = False) -> str:
     """``98.6 [98.1, 99.0] {97.8, 99.3}`` as the markdown board writes it (``render.pooled_text``),
-    the rate large, the intervals small under it, with a bar if ``bar``."""
+    the rate large and the intervals small beside it, over a bar of the three if ``bar``."""
     rate, intervals = pooled_text(p).split(" ", 1)
     return (
         f'<td class="num pooled" data-sort="{p.rate:.6f}">{_bar(p, oracle) if bar else ""}'
