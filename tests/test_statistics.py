@@ -351,3 +351,13 @@ def test_holm_matches_statsmodels(p_values: list[float]):
 
     expected = [float(x) for x in multipletests(p_values, method="holm")[1]] if p_values else []
     assert holm(p_values) == pytest.approx(expected, abs=1e-15)
+
+
+@pytest.mark.parametrize(("a_only", "b_only"), [(0, 0), (8, 1), (1, 8), (11, 0), (42, 42), (188, 11), (3, 4)])
+def test_the_exact_mcnemar_matches_statsmodels(a_only: int, b_only: int):
+    from statsmodels.stats.contingency_tables import mcnemar
+
+    from scftc_cli.study.compare import mcnemar_exact
+
+    expected = float(mcnemar(np.array([[0, a_only], [b_only, 0]]), exact=True).pvalue)
+    assert mcnemar_exact(a_only, b_only) == pytest.approx(expected, rel=1e-12)

@@ -68,10 +68,15 @@ class Comparison(BaseModel):
 
 
 def mcnemar_exact(a_only: int, b_only: int) -> float:
-    """Two-sided exact McNemar p-value of ``a_only`` vs ``b_only`` discordant pairs (1 if none)."""
-    from statsmodels.stats.contingency_tables import mcnemar
+    """Two-sided exact McNemar p-value of ``a_only`` vs ``b_only`` discordant pairs (1 if none): the
+    exact binomial test of ``a_only`` among ``a_only + b_only`` at 1/2 (scipy's ``binomtest``; the
+    same number as statsmodels' ``mcnemar(exact=True)``, which the tests check, without pulling
+    statsmodels and pandas into the base install)."""
+    if a_only + b_only == 0:
+        return 1.0
+    from scipy.stats import binomtest
 
-    return float(mcnemar(np.array([[0, a_only], [b_only, 0]]), exact=True).pvalue)
+    return float(binomtest(a_only, a_only + b_only, 0.5).pvalue)
 
 
 @dataclass(frozen=True)
