@@ -27,6 +27,9 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     site-packages through a path file (this environment's own install of scftc is an editable
     one, which a plain path entry does not activate)."""
     where = tmp_path_factory.mktemp("installed")
+    source = where / "source"  # a copy: building leaves a build/ folder in the tree it builds
+    skip = shutil.ignore_patterns(".git", ".venv", ".cache", "build", "results", "site", "__pycache__")
+    shutil.copytree(ROOT, source, symlinks=True, ignore=skip)
     build = subprocess.run(
         [
             sys.executable,
@@ -38,7 +41,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
             "-q",
             "-w",
             str(where),
-            str(ROOT),
+            str(source),
         ],
         capture_output=True,
         text=True,
