@@ -28,12 +28,12 @@ import numpy as np
 
 from scftc_cli import __version__
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
-from scftc_cli.board.ranking import FLAG_ALPHA, Pooled, Ranked, Ranking, pooled_settled, rank_board
-from scftc_cli.board.render import by_class, kind_text, pooled_text, rank_text
+from scftc_cli.board.ranking import Pooled, Ranked, Ranking, pooled_profile_of, pooled_settled, rank_board
+from scftc_cli.board.render import by_class, flag_sentence, history_parts, kind_text, pooled_text, rank_text
 from scftc_cli.board.svg import Line, profile_chart, style_of, swatch
-from scftc_cli.records import CellResult, GateStat
+from scftc_cli.records import GateStat
 from scftc_cli.spec import BenchmarkSpec, get_spec
-from scftc_cli.statistics import PROFILE_TAUS_DEG, pooled_profile
+from scftc_cli.statistics import PROFILE_TAUS_DEG
 
 SAFE_URL = re.compile(r"^https?://[^\s\"'<>`]+$")
 STATISTICS_DOC = "docs/statistics.md"
@@ -217,14 +217,6 @@ def _interval(low: float, high: float, braces: bool = False) -> str:
     return f"{left}{100 * low:.1f}, {100 * high:.1f}{right}"
 
 
-def ranked_profile(cells: Sequence[CellResult], classes: Sequence[str]) -> np.ndarray:
-    """``(40,)`` the pooled performance profile of an entry's cells over ``classes`` (actuator
-    cells only, as the ranked figure pools them), from their stored profile counts."""
-    chosen = [c for c in cells if c.sensor is None and c.fault_class in classes]
-    counts = np.array([c.final_error_deg.profile or [] for c in chosen])
-    return pooled_profile(counts, np.array([c.n for c in chosen]))
-
-
 # ------------------------------------------------------------------------------------ table cells
 def _heat_cell(stat: GateStat, what: str) -> str:
     """A heat-map cell: the settled rate in % inside, colour by rate, the intervals in its title."""
@@ -349,9 +341,9 @@ def _class_profiles(e: Entry, classes: Sequence[str], ranked: Sequence[str], gat
     lines = []
     for i, c in enumerate(classes):
         colour, dash = style_of(i)
-        values = ranked_profile(cells, [c])
+        values = pooled_profile_of(cells, [c])
         lines.append(Line(key=c, label=f"{c} ({draw})", values=values.tolist(), colour=colour, dash=dash))
-    pooled = ranked_profile(cells, ranked)
+    pooled = pooled_profile_of(cells, ranked)
     lines.append(
         Line(
             key="pooled",
@@ -519,21 +511,10 @@ def _failed_list(ranking: Ranking) -> str:
     return f'<ul class="failed">{items}</ul>' if items else ""
 
 
-def flag_sentence(r: Ranked) -> str:
-    """What a flag means, in the markdown board's words (``render.board_markdown``'s Flagged list;
-    a test holds the two to the same text)."""
-    return (
-        f'<span class="name">{esc(r.entry.name)}</span>: settles more on the public draw than on its '
-        f"sealed one on {esc(', '.join(r.flagged))}, beyond chance (an exact two-sample test over faults, "
-        f"the two draws being independent, Holm-adjusted over the entry's cells, at {FLAG_ALPHA}). The "
-        "public episodes are pinned and open, so a controller can recognise them; its public score says "
-        "nothing the sealed one does not, and only the sealed one ranks."
-    )
-
-
 def _flagged_list(ranking: Ranking) -> str:
     items = "".join(
-        f'<li data-name="{esc(r.entry.name)}">{flag_sentence(r)}</li>'
+        f'<li data-name="{esc(r.entry.name)}"><span class="name">{esc(r.entry.name)}</span>: '
+        f"{esc(flag_sentence(r.flagged))}</li>"
         for r in ranking.deployable
         if r.flagged
     )
@@ -564,11 +545,9 @@ def _rounds_table(board: Leaderboard) -> str:
 
 def history_item(e: BoardEvent) -> str:
     """One history event in ``render.history_line``'s words, as HTML."""
-    rounds = e.action.startswith("round-")
-    what = esc(e.name) if rounds else f'<span class="name">{esc(e.name)}</span>'
-    where = f" (round {e.round})" if e.round is not None and not rounds else ""
-    reason = f": {esc(e.reason)}" if e.reason else ""
-    return f"<li>board version {e.board_version} ({esc(e.utc)}): {esc(e.action)} {what}{where}{reason}</li>"
+    before, name, entry, after = history_parts(e)
+    what = f'<span class="name">{esc(name)}</span>' if entry else esc(name)
+    return f"<li>{esc(before)}{what}{esc(after)}</li>"
 
 
 def _history_list(board: Leaderboard) -> str:
@@ -605,7 +584,7 @@ def _profiles(ranking: Ranking, spec: BenchmarkSpec) -> str:
     lines, legend = [], []
     for i, r in enumerate(ranking.deployable):
         colour, dash = style_of(i)
-        values = ranked_profile(r.entry.sealed, ranked)
+        values = pooled_profile_of(r.entry.sealed, ranked)
         name = r.entry.name
         lines.append(
             Line(key=name, label=f"{rank_text(r)} {name}", values=values.tolist(), colour=colour, dash=dash)

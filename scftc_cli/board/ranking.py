@@ -16,6 +16,7 @@ pairs entries episode by episode and is compared with ``scftc compare``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,7 +25,7 @@ from scftc_cli.board.models import TIE_ALPHA, Entry, Leaderboard
 from scftc_cli.records import CellResult
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import get_spec
-from scftc_cli.statistics import holm, interval_by_fault, two_sample_by_fault
+from scftc_cli.statistics import holm, interval_by_fault, pooled_profile, two_sample_by_fault
 
 FLAG_ALPHA = 0.05
 
@@ -63,6 +64,15 @@ def pooled_settled(cells: list[CellResult], ranked_classes: tuple[str, ...]) -> 
     strata = tuple(tuple(c.settled.by_fault or ()) for c in chosen)
     seeds = chosen[0].n // len(strata[0]) if chosen and strata[0] else 1
     return Pooled(sum(c.settled.k for c in chosen), sum(c.n for c in chosen), strata, seeds)
+
+
+def pooled_profile_of(cells: list[CellResult], ranked_classes: Sequence[str]) -> np.ndarray:
+    """``(40,)`` the pooled performance profile of an entry's cells over ``ranked_classes`` (their
+    actuator cells, as ``pooled_settled`` pools them), from their stored profile counts: the
+    fraction of episodes whose final error is within each threshold of ``PROFILE_TAUS_DEG``."""
+    chosen = [c for c in cells if c.sensor is None and c.fault_class in ranked_classes]
+    counts = np.array([c.final_error_deg.profile or [] for c in chosen])
+    return pooled_profile(counts, np.array([c.n for c in chosen]))
 
 
 def tie_p_value(a: Pooled, b: Pooled) -> float:

@@ -105,14 +105,7 @@ def board_markdown(board: Leaderboard) -> str:
     flagged = [r for r in ranking.deployable if r.flagged]
     if flagged:
         out += ["", "## Flagged", ""]
-        out += [
-            f"- `{r.entry.name}`: settles more on the public draw than on its sealed one on "
-            f"{', '.join(r.flagged)}, beyond chance (an exact two-sample test over faults, the two draws "
-            f"being independent, Holm-adjusted over the entry's cells, at {FLAG_ALPHA}). The public episodes "
-            "are pinned and open, so a controller can recognise them; its public score says nothing the "
-            "sealed one does not, and only the sealed one ranks."
-            for r in flagged
-        ]
+        out += [f"- `{r.entry.name}`: {flag_sentence(r.flagged)}" for r in flagged]
     out += ["", "## Rounds", ""]
     out += (
         markdown_lines(
@@ -138,13 +131,30 @@ def board_markdown(board: Leaderboard) -> str:
     return "\n".join(out) + "\n"
 
 
+def flag_sentence(cells: list[str]) -> str:
+    """What a flag on ``cells`` means, in plain text (both boards print it after the entry's name)."""
+    return (
+        f"settles more on the public draw than on its sealed one on {', '.join(cells)}, beyond chance (an "
+        "exact two-sample test over faults, the two draws being independent, Holm-adjusted over the "
+        f"entry's cells, at {FLAG_ALPHA}). The public episodes are pinned and open, so a controller can "
+        "recognise them; its public score says nothing the sealed one does not, and only the sealed one "
+        "ranks."
+    )
+
+
+def history_parts(e: BoardEvent) -> tuple[str, str, bool, str]:
+    """One history event as ``(before, name, names_an_entry, after)``: each board wraps the name its
+    own way (markdown in backticks, HTML in a span)."""
+    rounds = e.action.startswith("round-")
+    where = f" (round {e.round})" if e.round is not None and not rounds else ""
+    reason = f": {e.reason}" if e.reason else ""
+    return f"board version {e.board_version} ({e.utc}): {e.action} ", e.name, not rounds, where + reason
+
+
 def history_line(e: BoardEvent) -> str:
     """``- board version 9 (utc): sealed `rls_dob` (round 1)``, with the reason if any."""
-    what = e.name if e.action.startswith("round-") else f"`{e.name}`"
-    where = f" (round {e.round})" if e.round is not None and not e.action.startswith("round-") else ""
-    return f"- board version {e.board_version} ({e.utc}): {e.action} {what}{where}" + (
-        f": {e.reason}" if e.reason else ""
-    )
+    before, name, entry, after = history_parts(e)
+    return f"- {before}{f'`{name}`' if entry else name}{after}"
 
 
 def _pending_and_failed(board: Leaderboard, ranking: Ranking, classes: tuple[str, ...]) -> list[str]:
