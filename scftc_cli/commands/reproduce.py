@@ -40,6 +40,14 @@ def reproduce_command(
         typer.Option(help="Initial conditions per fault [default: 10].", min=1, show_default=False),
     ] = None,
     log_episodes: LogEpisodesOption = None,
+    training_seeds: Annotated[
+        bool,
+        typer.Option(
+            "--training-seeds",
+            help="Also fly every training seed's weights of each learned controller on the held-out cells "
+            "and write training_seeds.md (minutes: five seeds per controller).",
+        ),
+    ] = False,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
@@ -62,6 +70,10 @@ def reproduce_command(
         from scftc_cli.study.figures import write_figures  # matplotlib only when a figure is drawn
 
         paths = write_tables(study, out) + write_figures(study, out)
+        if training_seeds:
+            from scftc_cli.study.seeds import write_seed_table
+
+            paths.append(write_seed_table(spec, out, progress))
         if log_episodes is not None:
             rows = [
                 row
