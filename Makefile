@@ -1,6 +1,6 @@
 # The two commands of the README quick start. Each sets up what it needs on first use.
-#   make reproduce   -> both versions' battery and sensor tables and figures, in results/scftc-v1/ and
-#                       results/scftc-v2/ (base install: no torch)
+#   make reproduce   -> every version's battery and sensor tables and figures, in results/<version>/
+#                       (base install: no torch)
 #   make test        -> system packages, full install, lint, format and type checks, schema check,
 #                       the test suite, leaderboard verify (what .ci/run runs)
 PYTHON ?= python3
@@ -53,9 +53,11 @@ sysdeps:
 	  fi; \
 	fi
 
+# Every registered benchmark version (scftc_cli/versions), the default first.
+VERSIONS = $$($(BIN)/python -c 'from scftc_cli.versions import version_names; print(*version_names())')
+
 reproduce: setup
-	$(BIN)/scftc reproduce
-	$(BIN)/scftc reproduce --benchmark scftc-v2
+	for version in $(VERSIONS); do $(BIN)/scftc reproduce --benchmark $$version || exit 1; done
 
 test: setup-dev
 	$(BIN)/ruff check $(SOURCES)
@@ -63,8 +65,7 @@ test: setup-dev
 	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
 	SCFTC_FORBID_SKIPS=1 $(BIN)/pytest -q
-	$(BIN)/scftc leaderboard verify
-	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
+	for version in $(VERSIONS); do $(BIN)/scftc leaderboard verify --benchmark $$version || exit 1; done
 
 lint: setup-dev
 	$(BIN)/ruff check $(SOURCES)

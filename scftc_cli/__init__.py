@@ -1,4 +1,10 @@
-"""SCFTC: the honest benchmark for spacecraft attitude fault-tolerant control."""
+"""SCFTC: the honest benchmark for spacecraft attitude fault-tolerant control.
+
+Importing the package imports nothing of it. Where gymnasium is (or later gets) imported, the
+package's environments are registered with it (``envs.register``): gymnasium 1.x loads no plugin
+entry points, so a post-import hook does it, naming the registration by its ``"module:attr"``
+(``ENVIRONMENTS``) so that the package root depends on no layer.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +14,14 @@ import sys
 from types import ModuleType
 
 __version__ = "0.2.0"
+
+ENVIRONMENTS = "scftc_cli.envs:register"
+"""What registers the gymnasium environments, loaded once gymnasium is imported."""
+
+
+def _register_environments() -> None:
+    module, _, attr = ENVIRONMENTS.partition(":")
+    getattr(importlib.import_module(module), attr)()
 
 
 class _AfterGymnasium(importlib.abc.MetaPathFinder):
@@ -26,17 +40,13 @@ class _AfterGymnasium(importlib.abc.MetaPathFinder):
 
         def exec_module(module: ModuleType) -> None:
             execute(module)
-            from scftc_cli.envs import register
-
-            register()
+            _register_environments()
 
         loader.exec_module = exec_module  # type: ignore[method-assign]
         return spec
 
 
 if "gymnasium" in sys.modules:
-    from scftc_cli.envs import register as _register
-
-    _register()
+    _register_environments()
 elif not any(isinstance(f, _AfterGymnasium) for f in sys.meta_path):
     sys.meta_path.insert(0, _AfterGymnasium())

@@ -39,7 +39,8 @@ class BoardFormat(StrEnum):
 
 
 SubBenchmarkOption = Annotated[
-    str | None, typer.Option("--benchmark", help="Benchmark version [default: scftc-v1].", show_default=False)
+    str | None,
+    typer.Option("--benchmark", help=f"Benchmark version [default: {DEFAULT}].", show_default=False),
 ]
 
 leaderboard_app = typer.Typer(
@@ -108,12 +109,16 @@ def show_command(
     fmt = BoardFormat(output_format).value
     if fmt == "html":
         from scftc_cli.board.html import board_html
-        from scftc_cli.spec import SPECS
+        from scftc_cli.versions import version_names
 
         if leaderboard is not None or _explicit(ctx, "benchmark"):
             boards = [read_board(leaderboard or default_board_path(benchmark), benchmark)]
         else:
-            boards = [read_board(default_board_path(v), v) for v in SPECS if default_board_path(v).exists()]
+            boards = [
+                read_board(default_board_path(v), v)
+                for v in version_names()
+                if default_board_path(v).exists()
+            ]
         text = board_html(boards)
     else:
         text = render_board(read_board(leaderboard or default_board_path(benchmark), benchmark), fmt)

@@ -68,7 +68,7 @@ def battery_bars(
     spec: BenchmarkSpec, results: list[EvalResult], colors: dict[str, tuple] | None = None
 ) -> Figure:
     """Grouped bars: settled rate per held-out class (groups) and controller (bars), Wilson 95 %;
-    sensor classes too where the battery flew them (``scftc-v2``)."""
+    sensor classes too where the battery flew them (a version whose sensors are in its battery)."""
     classes = list(spec.fault_classes)
     if any(c.sensor for r in results for c in r.cells):
         classes += list(spec.sensor_faults)
@@ -364,7 +364,9 @@ def sensor_faults(
             median.set(color="black")
     gate = spec.gates.settled_deg
     bottom.axhline(gate, color="red", linestyle="--", linewidth=1.2, label=f"{gate:g} deg settled gate")
-    biased = [(xi, sensor_bias_deg(s)) for xi, s in zip(x, sensors, strict=True) if sensor_bias_deg(s)]
+    biased = [
+        (xi, sensor_bias_deg(spec, s)) for xi, s in zip(x, sensors, strict=True) if sensor_bias_deg(spec, s)
+    ]
     bottom.plot(
         [b[0] for b in biased],
         [b[1] for b in biased],
@@ -375,7 +377,7 @@ def sensor_faults(
         label="sensor bias (where an unobservable offset parks the truth)",
     )
     for xi, s in zip(x, sensors, strict=True):
-        if sensor_bias_deg(s) == gate:
+        if sensor_bias_deg(spec, s) == gate:
             bottom.annotate(
                 "on the gate:\nrounding decides",
                 (xi, gate),

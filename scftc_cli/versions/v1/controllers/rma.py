@@ -1,0 +1,417 @@
+"""``rma_student`` and ``rma_dob``: learn to *identify* the fault, let the analytic law control.
+
+RMA (Kumar et al. 2021, arXiv 2107.04034) trains a privileged teacher and a student that infers
+the teacher's privileged input from the history of commands and responses. Here the teacher is the
+analytic law fed the true ``theta = g/f`` (``teacher``), and the student is a GRU-driven
+least-squares estimator of the *identifiable* per-axis authority ``theta`` (docs/benchmark.md),
+online. The source study
+regressed ``[g0, g1, g2, f-1]`` instead, which is ill-posed: scaling ``g``, ``b`` and ``f``
+together leaves every trajectory unchanged, so that regression can only learn a conditional mean.
+
+The student is one small GRU shared by the three body axes: after the gyroscopic term is removed
+with the nominal inertia, each axis obeys ``dW_i = theta_i a_i + beta_i`` on its own
+(``baselines/observer.py``), so axis ``i`` is estimated from its own history of ``(a_i, dW_i,
+sigma_i, w_i)``. Sharing the weights across axes makes the estimator blind to how many axes are
+reversed, which is exactly what the held-out sign patterns change.
+
+The persistence-of-excitation latch freezes each axis' estimate once the commands varied enough
+and the estimate stopped moving; in the settled phase there is no excitation left, and a live
+estimate could wander and make the loop limit-cycle. ``rma_dob`` adds the disturbance observer
+of docs/benchmark.md on top of a student trained with train-split biases in the loop; that student
+sees only bias-invariant features (first differences: ``ddW = theta da`` under a constant bias),
+so a bias outside the train range cannot fake the authority it reports.
+
+The student's output layer is a least-squares fit whose weights and prior the GRU chooses
+(``StudentNet``): a plain regression head cannot answer outside the authorities it was trained
+on, and the held-out split's go below the train range by construction. Measured: the first,
+direct-regression student estimated held-out axes of ``|theta|`` 0.13-0.25 at ~0.27-0.36
+(``rma_dob`` 86.0 % settled on ``gain_bias``); the fit identifies them to a median 0.1 % (93.6 %).
+
+The network (``ThetaStudent``, a torch module) is trained in ``training/rma.py``; evaluation runs
+it with the numba kernel ``recurrent.student_step`` and never imports torch. Weights live in
+``scftc_cli/weights/<name>.npz`` with a sidecar ``<name>.yaml`` (provenance);
+``scftc train --controller rma_student|rma_dob`` regenerates them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from scftc_cli.baselines import recurrent
+from scftc_cli.baselines.params import committed_weights
+from scftc_cli.errors import ScftcError
+from scftc_cli.protocol import Context, Controller
+from scftc_cli.versions.v1.controllers.analytic import analytic_command, nominal_command
+from scftc_cli.versions.v1.controllers.observer import DisturbanceObserver, TorqueMeter
+from scftc_cli.versions.v1.spec import V1
+
+N_FEATURES = 12
+RATIO_EPS = 0.01  # regularizes the one-step ratio where the command was small
+RATIO_DIFF_EPS = 1e-4  # ... and the first-difference ratio where the command barely changed
+RATIO_CLIP = 4.0
+# log 0.1 and log 3 (train |theta| in [0.25, 1.875]), correctly rounded: written out, because a
+# library's log may round differently on another CPU and move the clamp of every prior.
+LOG_MAG_MIN, LOG_MAG_MAX = -2.3025850929940455, 1.0986122886681098
+# Fixed input scaling (about 1 / std of each feature over early train-split steps): the
+# differences are small, and unscaled they train several times slower.
+FEATURE_SCALE = (5.0, 8.0, 15.0, 100.0, 13.0, 8.0, 3.0, 2.0, 8.0, 35.0, 1.0, 1.0)
+# Features a constant bias shifts (dW, a dW, a dW / a^2). A bias-invariant student (rma_dob's)
+# reads theta from first differences only, ddW = theta da exactly, so no bias, however far
+# outside the train range, can fake the sign or size of the authority it reports.
+BIASED_FEATURES = (1, 4, 6)
+# Columns (x, y, valid) of the least-squares pair y = theta x: (a, dW) or, bias-invariant, (da, ddW).
+RAW_PAIR, DIFF_PAIR = (0, 1, 10), (2, 3, 11)
+# Strength of the GRU's prior guess in units of the summed weighted x^2; about a tenth of the
+# excitation the latch asks for, so the data dominate by the time an axis can latch.
+PRIOR_WEIGHT = 0.01
+
+
+@dataclass(frozen=True)
+class LatchConfig:
+    """Per-axis persistence-of-excitation latch.
+
+    An axis latches at step ``k >= min_steps`` once the summed squared command changes reached
+    ``min_excitation`` and the raw estimate moved less than ``tolerance * max(|theta_hat|, 0.1)``
+    over the last ``window`` steps, or, excitation reached, at step ``max_steps`` at the latest
+    (before the vehicle comes to rest, where a bias makes the history uninformative); from then
+    on its estimate is frozen.
+    """
+
+    min_steps: int = 10
+    max_steps: int = 80
+    min_excitation: float = 0.1
+    window: int = 10
+    tolerance: float = 0.02
+
+
+@dataclass(frozen=True)
+class StudentConfig:
+    """Architecture and deployment settings stored with the weights."""
+
+    hidden: int = 32
+    latch: LatchConfig = LatchConfig()
+    observer_gain: float = 0.0  # > 0: compose with the disturbance observer (rma_dob)
+    bias_invariant: bool = False  # see only features that a constant bias cannot shift
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> StudentConfig:
+        return cls(
+            hidden=int(d["hidden"]),
+            latch=LatchConfig(**d["latch"]),
+            observer_gain=float(d["observer_gain"]),
+            bias_invariant=bool(d.get("bias_invariant", False)),
+        )
+
+
+def student_scale(bias_invariant: bool) -> np.ndarray:
+    """The fixed input scaling, zero on ``BIASED_FEATURES`` for a bias-invariant student."""
+    scale = np.array(FEATURE_SCALE, dtype=np.float32)
+    if bias_invariant:
+        scale[list(BIASED_FEATURES)] = 0.0
+    return scale
+
+
+@dataclass(frozen=True, eq=False)
+class StudentNet:
+    """The weights of a ``ThetaStudent`` (``training/rma.py``), laid out for the numba kernel.
+
+    The student is a per-axis GRU whose output layer is a least-squares fit with sample weights and
+    prior chosen by the network:
+
+        theta_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t
+
+    with ``(x, y) = (a, dW)``, or ``(da, ddW)`` for a bias-invariant student (``y = theta x``
+    exactly in either case, up to the gyroscopic rounding), ``w_s = softplus(.) >= 0`` a learned
+    per-step weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat``
+    a learned prior guess of fixed strength ``P = PRIOR_WEIGHT``. Weights are float64 copies of the
+    float32 arrays as trained (exact), matrices transposed to ``(in, out)``.
+    """
+
+    scale: np.ndarray
+    w_in: np.ndarray
+    b_in: np.ndarray
+    w_ih: np.ndarray
+    b_ih: np.ndarray
+    w_hh: np.ndarray
+    b_hh: np.ndarray
+    w_1: np.ndarray
+    b_1: np.ndarray
+    w_2: np.ndarray
+    b_2: np.ndarray
+    pair: tuple[int, int, int]
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, np.ndarray], bias_invariant: bool) -> StudentNet:
+        """From a ``ThetaStudent`` state dict as numpy arrays (the keys of the ``.npz`` file)."""
+        t, f = recurrent.transposed, recurrent.as_float64
+        return cls(
+            scale=f(state["scale"]),
+            w_in=t(state["inp.weight"]),
+            b_in=f(state["inp.bias"]),
+            w_ih=t(state["gru.weight_ih_l0"]),
+            b_ih=f(state["gru.bias_ih_l0"]),
+            w_hh=t(state["gru.weight_hh_l0"]),
+            b_hh=f(state["gru.bias_hh_l0"]),
+            w_1=t(state["head.0.weight"]),
+            b_1=f(state["head.0.bias"]),
+            w_2=t(state["head.2.weight"]),
+            b_2=f(state["head.2.bias"]),
+            pair=DIFF_PAIR if bias_invariant else RAW_PAIR,
+        )
+
+    @property
+    def hidden(self) -> int:
+        return self.w_hh.shape[0]
+
+    def start(self, rows: int) -> StudentState:
+        """The state of ``rows`` fresh sequences."""
+        return StudentState(np.zeros((rows, self.hidden)), np.zeros((rows, 2)), np.zeros(rows))
+
+    def step(self, x: np.ndarray, state: StudentState, active: np.ndarray | None = None) -> np.ndarray:
+        """Advance ``state`` by the features ``x`` ``(B, N_FEATURES)`` (float64) of one step and
+        return ``theta_hat`` ``(B,)`` (``state.theta``, updated in place). Rows where ``active`` is
+        false are skipped: their hidden state, sums and ``theta_hat`` stay as they were."""
+        if active is None:
+            active = np.ones(x.shape[0], dtype=np.bool_)
+        recurrent.student_step(
+            np.ascontiguousarray(x, dtype=np.float64),
+            active,
+            self.scale,
+            state.h,
+            state.sums,
+            state.theta,
+            self.w_in,
+            self.b_in,
+            self.w_ih,
+            self.b_ih,
+            self.w_hh,
+            self.b_hh,
+            self.w_1,
+            self.b_1,
+            self.w_2,
+            self.b_2,
+            *self.pair,
+            PRIOR_WEIGHT,
+            LOG_MAG_MIN,
+            LOG_MAG_MAX,
+        )
+        return state.theta
+
+    def run(self, x: np.ndarray) -> np.ndarray:
+        """``theta_hat`` ``(B, T)`` of whole feature sequences ``x`` ``(B, T, N_FEATURES)``."""
+        state = self.start(x.shape[0])
+        return np.stack([self.step(x[:, k], state).copy() for k in range(x.shape[1])], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class StudentState:
+    """The recurrent state of ``B`` sequences: GRU ``h`` ``(B, H)``, the fit's running sums
+    ``(sum w x y, sum w x^2)`` ``(B, 2)`` and the last ``theta_hat`` ``(B,)``; updated in place."""
+
+    h: np.ndarray
+    sums: np.ndarray
+    theta: np.ndarray
+
+
+def axis_features(
+    obs: np.ndarray,
+    a_prev: np.ndarray,
+    dw_prev: np.ndarray,
+    da: np.ndarray,
+    ddw: np.ndarray,
+    valid1: float,
+    valid2: float,
+) -> np.ndarray:
+    """``(n * 3, N_FEATURES)`` features, episode-major then axis, for ``obs`` ``(n, 6)`` and the
+    last step's command ``a_prev``, measured torque ``dw_prev`` and their first differences
+    ``da``, ``ddw`` (all ``(n, 3)``). ``valid1``/``valid2`` flag that one/two steps were measured.
+
+    The products ``a dW`` and ``a^2`` are the sufficient statistics of a least-squares fit of
+    ``dW = theta a + beta``, and the regularized ratios ``a dW / (a^2 + eps)`` (exact ``theta``
+    without bias) and ``da ddW / (da^2 + eps)`` (exact ``theta`` under a constant bias) the
+    one-step estimates; handing them over saves the GRU from learning to multiply and divide.
+    """
+    n = obs.shape[0]
+    ratio = np.clip(a_prev * dw_prev / (a_prev * a_prev + RATIO_EPS), -RATIO_CLIP, RATIO_CLIP)
+    ratio_diff = np.clip(da * ddw / (da * da + RATIO_DIFF_EPS), -RATIO_CLIP, RATIO_CLIP)
+    cols = (
+        a_prev,
+        dw_prev,
+        da,
+        ddw,
+        a_prev * dw_prev,
+        a_prev * a_prev,
+        ratio,
+        ratio_diff,
+        obs[:, :3],
+        obs[:, 3:],
+        np.full((n, 3), valid1),
+        np.full((n, 3), valid2),
+    )
+    return np.stack(cols, axis=-1).reshape(n * 3, N_FEATURES)
+
+
+class Latch:
+    """The per-axis persistence-of-excitation latch (``LatchConfig``) of a batch ``(n, 3)``.
+
+    Per step: ``theta = latch.update(raw, excitation)`` with the live estimate ``raw`` and the
+    summed squared command changes ``excitation``; axes that latch keep the estimate of the step
+    they latched at from then on (``latched``, ``frozen``).
+    """
+
+    def __init__(self, config: LatchConfig, n: int) -> None:
+        self.config = config
+        self.k = 0
+        self.history = np.zeros((config.window + 1, n, 3))  # ring buffer of raw estimates
+        self.latched = np.zeros((n, 3), dtype=bool)
+        self.frozen = np.zeros((n, 3))
+
+    def update(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
+        """Fold in step ``k``'s ``raw`` ``(n, 3)``; returns the estimate to use, latched where frozen."""
+        cfg, k = self.config, self.k
+        self.k += 1
+        self.history[k % (cfg.window + 1)] = raw
+        if k >= max(cfg.min_steps, cfg.window):
+            spread = self.history.max(axis=0) - self.history.min(axis=0)
+            still = spread <= cfg.tolerance * np.maximum(np.abs(raw), 0.1)
+            due = still | (k >= cfg.max_steps)
+            now = ~self.latched & due & (excitation >= cfg.min_excitation)
+            self.frozen = np.where(now, raw, self.frozen)
+            self.latched |= now
+        return np.where(self.latched, self.frozen, raw)
+
+
+class StudentEstimator:
+    """Runs the student online over a batch and applies the latch.
+
+    Per step: ``theta = est.estimate(obs)`` (``(n, 3)``, latched where frozen), then
+    ``est.hold(command)`` with the command as applied. ``features`` keeps the last step's input
+    (the trainer records it), ``raw`` the live estimate, ``latched`` which axes are frozen. The
+    network is no longer evaluated on a frozen axis (nothing reads it), so there ``raw`` stays at
+    the value it latched with.
+    """
+
+    def __init__(self, net: ThetaNet, latch: LatchConfig, context: Context) -> None:
+        self.net, self.context = net, context
+        n = context.n
+        self.meter = TorqueMeter(context)
+        self.state = net.start(n * 3)
+        self.k = 0
+        self.last_command = np.zeros((n, 3))  # a_{k-1}, zero before the first step
+        self.last_dw = np.zeros((n, 3))  # dW_{k-1}
+        self.measured = False  # whether last_dw was measured (k >= 1)
+        self.excitation = np.zeros((n, 3))
+        self.latch = Latch(latch, n)
+        self.raw = np.zeros((n, 3))
+        self.features = np.zeros((n * 3, N_FEATURES))
+
+    @property
+    def latched(self) -> np.ndarray:
+        return self.latch.latched
+
+    @property
+    def frozen(self) -> np.ndarray:
+        return self.latch.frozen
+
+    def estimate(self, obs: np.ndarray) -> np.ndarray:
+        """``theta_hat`` ``(n, 3)`` after observing ``obs`` ``(n, 6)``."""
+        n = obs.shape[0]
+        dw, a_prev = self.meter.read(obs)
+        if dw is None or a_prev is None:
+            dw, a_prev, valid1 = np.zeros((n, 3)), np.zeros((n, 3)), 0.0
+        else:
+            valid1 = 1.0
+        valid2 = 1.0 if self.k >= 2 else 0.0
+        da, ddw = a_prev - self.last_command, (dw - self.last_dw) * valid2
+        self.excitation += da * da
+        self.features = axis_features(obs, a_prev, dw, da, ddw, valid1, valid2)
+        self.last_command, self.last_dw, self.measured = a_prev, dw, valid1 > 0.0
+        theta = self.net.step(self.features, self.state, ~self.latch.latched.reshape(-1))
+        self.raw = theta.reshape(n, 3).copy()
+        self.k += 1
+        return self.latch.update(self.raw, self.excitation)
+
+    def hold(self, command: np.ndarray) -> None:
+        """Record the command ``(n, 3)`` applied over the coming step."""
+        self.meter.hold(command)
+
+
+def save_student(state: Mapping[str, np.ndarray], config: StudentConfig, path: Path) -> Path:
+    """Write a ``ThetaStudent`` state dict (numpy, stored as float32) and ``config`` to the
+    ``.npz`` file ``path``."""
+    return recurrent.save_weights(path, dict(state), config.to_dict())
+
+
+def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
+    """The committed student ``name``, ready for the kernel (float64)."""
+    path = path or committed_weights(name, V1.version)
+    state, doc = recurrent.load_weights(path)
+    config = StudentConfig.from_dict(doc)
+    net = StudentNet.from_state(state, config.bias_invariant)
+    if net.hidden != config.hidden or net.scale.shape != (N_FEATURES,):
+        raise ScftcError(f"{path}: the weights do not have the shape its config describes")
+    return net, config
+
+
+class ThetaNet(Protocol):
+    """What the estimator needs of a student network: ``StudentNet`` (the numba kernel, deployed)
+    or the trainer's torch module in float64 (``training/rma.py``)."""
+
+    def start(self, rows: int) -> Any:
+        """The state of ``rows`` fresh sequences."""
+
+    def step(self, x: np.ndarray, state: Any, active: np.ndarray | None = None) -> np.ndarray:
+        """``theta_hat`` ``(B,)`` after the features ``x`` ``(B, N_FEATURES)`` of one step."""
+
+
+class StudentController(Controller):
+    """The analytic law fed the student's latched ``theta_hat`` (and, with ``observer_gain > 0``,
+    the disturbance observer's ``beta_hat``)."""
+
+    name = "rma_student"
+
+    def __init__(
+        self, path: Path | None = None, net: ThetaNet | None = None, config: StudentConfig | None = None
+    ) -> None:
+        if net is None or config is None:
+            net, config = load_student(self.name, path)
+        self.net, self.config = net, config
+
+    def reset(self, n: int, context: Context) -> None:
+        self.context = context
+        self.estimator = StudentEstimator(self.net, self.config.latch, context)
+        self.observer = DisturbanceObserver(n, self.config.observer_gain)
+        self.beta_hat = np.zeros((n, 3))
+
+    def theta_hat(self, obs: np.ndarray) -> np.ndarray:
+        """The ``(n, 3)`` authority the law divides by (the trainer mixes in the teacher's)."""
+        return self.estimator.estimate(obs)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        theta_hat = self.theta_hat(obs)
+        est = self.estimator
+        if self.config.observer_gain > 0.0 and est.measured:
+            self.beta_hat = self.observer.update(est.last_dw, est.last_command, theta_hat)
+        command = analytic_command(nominal_command(obs, self.context), theta_hat, self.beta_hat)
+        est.hold(command)
+        return command
+
+
+class RMAStudent(StudentController):
+    """The RMA student; weights ``scftc_cli/weights/rma_student.npz``."""
+
+    name = "rma_student"
+
+
+class RMADob(StudentController):
+    """The gain student composed with the disturbance observer; weights ``rma_dob.npz``."""
+
+    name = "rma_dob"
