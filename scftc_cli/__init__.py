@@ -20,8 +20,9 @@ ENVIRONMENTS = "scftc_cli.envs:register"
 
 
 def _register_environments() -> None:
-    module, _, attr = ENVIRONMENTS.partition(":")
-    getattr(importlib.import_module(module), attr)()
+    from scftc_cli.loading import load
+
+    load(ENVIRONMENTS)()
 
 
 class _AfterGymnasium(importlib.abc.MetaPathFinder):

@@ -19,17 +19,18 @@ import pytest
 
 from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.policy import PolicyConfig, PolicyNet
+from scftc_cli.baselines.student import StudentNet
 from scftc_cli.errors import ScftcError
 from scftc_cli.protocol import Context
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.versions.v1 import VERSION
 from scftc_cli.versions.v1.controllers.ppo import E2EPPO, OBS_SCALE
 from scftc_cli.versions.v1.controllers.rma import (
+    LAYOUT,
     N_FEATURES,
     Latch,
     StudentConfig,
     StudentController,
-    StudentNet,
     load_student,
 )
 from scftc_cli.versions.v1.sim.faults import RigidEpisodes
@@ -146,6 +147,7 @@ def test_kernel_bits_are_pinned() -> None:
             "head.2.weight": golden_inputs((3, hidden), 0.9),
             "head.2.bias": golden_inputs((3,), 0.05),
         },
+        LAYOUT,
         bias_invariant=False,
     )
     x = 4.0 * golden_inputs((7, 60, N_FEATURES), 0.33)
@@ -199,11 +201,12 @@ class _RecordingStudent(StudentController):
 def torch_student(name: str) -> Any:
     """The committed student as the torch module it was trained as, in float64."""
     torch = pytest.importorskip("torch")  # the reference only: evaluation never imports it
-    from scftc_cli.versions.v1.training.rma import ThetaStudent
+    from scftc_cli.training.student import StudentModule
+    from scftc_cli.versions.v1.controllers.rma import LAYOUT
 
     arrays, doc = recurrent.load_weights(VERSION.weights_dir / f"{name}.npz")
     config = StudentConfig.from_dict(doc)
-    model = ThetaStudent(config.hidden, config.bias_invariant)
+    model = StudentModule(LAYOUT, config.hidden, config.bias_invariant)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     return model.double().eval()
 

@@ -32,7 +32,17 @@ import numpy as np
 
 from scftc_cli.baselines.params import committed_params
 from scftc_cli.protocol import Context, Controller
-from scftc_cli.sim.mrp import cross, dot, norm2, shadow_switch, to_dcm
+from scftc_cli.sim.mrp import (
+    TWO_PI,
+    axis_mrp,
+    compose,
+    cross,
+    euler_pqp,
+    relative,
+    rotvec,
+    to_dcm,
+    twist_swing,
+)
 from scftc_cli.versions.v1.controllers.analytic import nominal_command, theta_eff, torque_cap_nm
 from scftc_cli.versions.v1.controllers.observer import DisturbanceObserver, TorqueMeter, square_dither
 from scftc_cli.versions.v1.controllers.rls import AxisRLS, RLSParams
@@ -42,7 +52,6 @@ NAME = "rls_plan"
 
 # modes (per episode)
 ANALYTIC, NULL_RATE, SLEW, HOLD, DIRECT = 0, 1, 2, 3, 4
-TWO_PI = 2.0 * np.pi
 
 
 @dataclass(frozen=True)
@@ -78,76 +87,6 @@ class PlanParams(RLSParams):
     bias_margin: float = 0.1  # use the bias law when min_i |theta_i| - |beta_i| is below this
     bias_plan: bool = True  # bias law: the plan with the weakest axis holding (else direct PTOS)
     eta_bias: float = 0.8
-
-
-# --- attitude helpers (batch, MRP) ----------------------------------------------------------------
-
-
-def rotvec(sigma: np.ndarray) -> np.ndarray:
-    """Rotation vector ``4 atan(|s|) s/|s|`` ``(m, 3)`` of MRPs ``(m, 3)`` (``4 s`` near zero)."""
-    s = np.sqrt(norm2(sigma))[:, None]
-    return sigma * np.where(s > 1e-12, 4.0 * np.arctan(s) / np.maximum(s, 1e-300), 4.0)
-
-
-def compose(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """``first`` then ``second`` (DCM ``C(second) C(first)``), shadow-switched; two half turns about
-    one axis compose to the identity (the MRP formula's 0/0 there)."""
-    a2, b2, ab = norm2(first)[:, None], norm2(second)[:, None], dot(first, second)[:, None]
-    num = (1.0 - a2) * second + (1.0 - b2) * first - 2.0 * cross(second, first)
-    den = 1.0 + a2 * b2 - 2.0 * ab
-    safe = den > 1e-12
-    return shadow_switch(np.where(safe, num / np.where(safe, den, 1.0), 0.0))
-
-
-def relative(sigma_body: np.ndarray, sigma_ref: np.ndarray) -> np.ndarray:
-    """MRP of the body relative to a reference frame (both relative to the target): ``C_BW``."""
-    return compose(-sigma_ref, sigma_body)
-
-
-def axis_mrp(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """MRP ``(m, 3)`` of a rotation by ``angle`` ``(m,)`` about body axis index ``axis`` ``(m,)``."""
-    out = np.zeros((len(axis), 3))
-    out[np.arange(len(axis)), axis] = np.tan(angle / 4.0)
-    return out
-
-
-def twist_swing(sigma_rel: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split ``C_BW = C_delta M_axis(psi)``: twist angle ``psi`` ``(m,)`` in ``[-pi, pi]`` about body
-    axis ``axis`` and the swing's rotation vector ``delta`` ``(m, 3)`` (no component on ``axis``)."""
-    rows = np.arange(len(axis))
-    psi = 2.0 * np.arctan2(2.0 * sigma_rel[rows, axis], 1.0 - norm2(sigma_rel))
-    swing = compose(axis_mrp(axis, -psi), sigma_rel)
-    return psi, rotvec(swing)
-
-
-def levi_civita(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``eps_{p q d}`` (+1 cyclic, -1 anticyclic) for distinct axis indices ``p, q``."""
-    return np.where((q - p) % 3 == 1, 1.0, -1.0)
-
-
-def euler_pqp(dcm: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Angles ``(a, b, c)`` ``(m, 2, 3)`` (two branches) with ``dcm = M_p(c) M_q(b) M_p(a)``,
-    ``M_e(x)`` the frame rotation by ``x`` about axis ``e``; ``dcm`` ``(m, 3, 3)``."""
-    rows = np.arange(len(p))
-    d = 3 - p - q
-    s = levi_civita(p, q)
-    cos_b = np.clip(dcm[rows, p, p], -1.0, 1.0)
-    b = np.arccos(cos_b)
-    a = np.arctan2(dcm[rows, p, q], -s * dcm[rows, p, d])
-    c = np.arctan2(dcm[rows, q, p], s * dcm[rows, d, p])
-    # gimbal lock (b ~ 0 or pi): only a +- c is defined; put it all in c
-    lock = np.abs(np.sin(b)) < 1e-9
-    c_lock = np.arctan2(s * np.where(cos_b > 0, 1.0, -1.0) * dcm[rows, q, d], dcm[rows, q, q])
-    a = np.where(lock, 0.0, a)
-    c = np.where(lock, c_lock, c)
-    first = np.stack([a, b, c], axis=1)
-    second = np.stack([wrap(a + np.pi), -b, wrap(c + np.pi)], axis=1)
-    return np.stack([first, second], axis=1)
-
-
-def wrap(x: np.ndarray) -> np.ndarray:
-    """Angles into ``(-pi, pi]``."""
-    return np.pi - np.mod(np.pi - x, TWO_PI)
 
 
 def slew_time(angle: np.ndarray, a_pos: np.ndarray, a_neg: np.ndarray, eta: float) -> np.ndarray:

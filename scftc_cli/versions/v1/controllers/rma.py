@@ -22,29 +22,29 @@ sees only bias-invariant features (first differences: ``ddW = theta da`` under a
 so a bias outside the train range cannot fake the authority it reports.
 
 The student's output layer is a least-squares fit whose weights and prior the GRU chooses
-(``StudentNet``): a plain regression head cannot answer outside the authorities it was trained
+(``baselines/student.py``): a plain regression head cannot answer outside the authorities it was trained
 on, and the held-out split's go below the train range by construction. Measured: the first,
 direct-regression student estimated held-out axes of ``|theta|`` 0.13-0.25 at ~0.27-0.36
 (``rma_dob`` 86.0 % settled on ``gain_bias``); the fit identifies them to a median 0.1 % (93.6 %).
 
-The network (``ThetaStudent``, a torch module) is trained in ``training/rma.py``; evaluation runs
-it with the numba kernel ``recurrent.student_step`` and never imports torch. Weights live in
-``scftc_cli/weights/<name>.npz`` with a sidecar ``<name>.yaml`` (provenance);
+The network (``training/student.py``'s module, trained in ``training/rma.py``) is the one every
+version's students share (``baselines/student.py``); this version's ``LAYOUT`` says what it reads.
+Evaluation runs it with the numba kernel and never imports torch. Weights live in this version's
+``weights/<name>.npz`` with a sidecar ``<name>.yaml`` (provenance);
 ``scftc train --controller rma_student|rma_dob`` regenerates them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from scftc_cli.baselines import recurrent
+from scftc_cli.baselines import student
 from scftc_cli.baselines.params import committed_weights
-from scftc_cli.errors import ScftcError
+from scftc_cli.baselines.student import StudentLayout, StudentNet, StudentNetLike
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import analytic_command, nominal_command
 from scftc_cli.versions.v1.controllers.observer import DisturbanceObserver, TorqueMeter
@@ -111,114 +111,16 @@ class StudentConfig:
         )
 
 
-def student_scale(bias_invariant: bool) -> np.ndarray:
-    """The fixed input scaling, zero on ``BIASED_FEATURES`` for a bias-invariant student."""
-    scale = np.array(FEATURE_SCALE, dtype=np.float32)
-    if bias_invariant:
-        scale[list(BIASED_FEATURES)] = 0.0
-    return scale
-
-
-@dataclass(frozen=True, eq=False)
-class StudentNet:
-    """The weights of a ``ThetaStudent`` (``training/rma.py``), laid out for the numba kernel.
-
-    The student is a per-axis GRU whose output layer is a least-squares fit with sample weights and
-    prior chosen by the network:
-
-        theta_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t
-
-    with ``(x, y) = (a, dW)``, or ``(da, ddW)`` for a bias-invariant student (``y = theta x``
-    exactly in either case, up to the gyroscopic rounding), ``w_s = softplus(.) >= 0`` a learned
-    per-step weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat``
-    a learned prior guess of fixed strength ``P = PRIOR_WEIGHT``. Weights are float64 copies of the
-    float32 arrays as trained (exact), matrices transposed to ``(in, out)``.
-    """
-
-    scale: np.ndarray
-    w_in: np.ndarray
-    b_in: np.ndarray
-    w_ih: np.ndarray
-    b_ih: np.ndarray
-    w_hh: np.ndarray
-    b_hh: np.ndarray
-    w_1: np.ndarray
-    b_1: np.ndarray
-    w_2: np.ndarray
-    b_2: np.ndarray
-    pair: tuple[int, int, int]
-
-    @classmethod
-    def from_state(cls, state: Mapping[str, np.ndarray], bias_invariant: bool) -> StudentNet:
-        """From a ``ThetaStudent`` state dict as numpy arrays (the keys of the ``.npz`` file)."""
-        t, f = recurrent.transposed, recurrent.as_float64
-        return cls(
-            scale=f(state["scale"]),
-            w_in=t(state["inp.weight"]),
-            b_in=f(state["inp.bias"]),
-            w_ih=t(state["gru.weight_ih_l0"]),
-            b_ih=f(state["gru.bias_ih_l0"]),
-            w_hh=t(state["gru.weight_hh_l0"]),
-            b_hh=f(state["gru.bias_hh_l0"]),
-            w_1=t(state["head.0.weight"]),
-            b_1=f(state["head.0.bias"]),
-            w_2=t(state["head.2.weight"]),
-            b_2=f(state["head.2.bias"]),
-            pair=DIFF_PAIR if bias_invariant else RAW_PAIR,
-        )
-
-    @property
-    def hidden(self) -> int:
-        return self.w_hh.shape[0]
-
-    def start(self, rows: int) -> StudentState:
-        """The state of ``rows`` fresh sequences."""
-        return StudentState(np.zeros((rows, self.hidden)), np.zeros((rows, 2)), np.zeros(rows))
-
-    def step(self, x: np.ndarray, state: StudentState, active: np.ndarray | None = None) -> np.ndarray:
-        """Advance ``state`` by the features ``x`` ``(B, N_FEATURES)`` (float64) of one step and
-        return ``theta_hat`` ``(B,)`` (``state.theta``, updated in place). Rows where ``active`` is
-        false are skipped: their hidden state, sums and ``theta_hat`` stay as they were."""
-        if active is None:
-            active = np.ones(x.shape[0], dtype=np.bool_)
-        recurrent.student_step(
-            np.ascontiguousarray(x, dtype=np.float64),
-            active,
-            self.scale,
-            state.h,
-            state.sums,
-            state.theta,
-            self.w_in,
-            self.b_in,
-            self.w_ih,
-            self.b_ih,
-            self.w_hh,
-            self.b_hh,
-            self.w_1,
-            self.b_1,
-            self.w_2,
-            self.b_2,
-            *self.pair,
-            PRIOR_WEIGHT,
-            LOG_MAG_MIN,
-            LOG_MAG_MAX,
-        )
-        return state.theta
-
-    def run(self, x: np.ndarray) -> np.ndarray:
-        """``theta_hat`` ``(B, T)`` of whole feature sequences ``x`` ``(B, T, N_FEATURES)``."""
-        state = self.start(x.shape[0])
-        return np.stack([self.step(x[:, k], state).copy() for k in range(x.shape[1])], axis=1)
-
-
-@dataclass(frozen=True, eq=False)
-class StudentState:
-    """The recurrent state of ``B`` sequences: GRU ``h`` ``(B, H)``, the fit's running sums
-    ``(sum w x y, sum w x^2)`` ``(B, 2)`` and the last ``theta_hat`` ``(B,)``; updated in place."""
-
-    h: np.ndarray
-    sums: np.ndarray
-    theta: np.ndarray
+LAYOUT = StudentLayout(
+    feature_scale=FEATURE_SCALE,
+    biased_features=BIASED_FEATURES,
+    raw_pair=RAW_PAIR,
+    diff_pair=DIFF_PAIR,
+    prior_weight=PRIOR_WEIGHT,
+    log_mag_min=LOG_MAG_MIN,
+    log_mag_max=LOG_MAG_MAX,
+)
+"""What the per-axis student reads (``baselines/student.py`` runs it)."""
 
 
 def axis_features(
@@ -299,7 +201,7 @@ class StudentEstimator:
     the value it latched with.
     """
 
-    def __init__(self, net: ThetaNet, latch: LatchConfig, context: Context) -> None:
+    def __init__(self, net: StudentNetLike, latch: LatchConfig, context: Context) -> None:
         self.net, self.context = net, context
         n = context.n
         self.meter = TorqueMeter(context)
@@ -344,32 +246,9 @@ class StudentEstimator:
         self.meter.hold(command)
 
 
-def save_student(state: Mapping[str, np.ndarray], config: StudentConfig, path: Path) -> Path:
-    """Write a ``ThetaStudent`` state dict (numpy, stored as float32) and ``config`` to the
-    ``.npz`` file ``path``."""
-    return recurrent.save_weights(path, dict(state), config.to_dict())
-
-
 def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
-    """The committed student ``name``, ready for the kernel (float64)."""
-    path = path or committed_weights(name, V1.version)
-    state, doc = recurrent.load_weights(path)
-    config = StudentConfig.from_dict(doc)
-    net = StudentNet.from_state(state, config.bias_invariant)
-    if net.hidden != config.hidden or net.scale.shape != (N_FEATURES,):
-        raise ScftcError(f"{path}: the weights do not have the shape its config describes")
-    return net, config
-
-
-class ThetaNet(Protocol):
-    """What the estimator needs of a student network: ``StudentNet`` (the numba kernel, deployed)
-    or the trainer's torch module in float64 (``training/rma.py``)."""
-
-    def start(self, rows: int) -> Any:
-        """The state of ``rows`` fresh sequences."""
-
-    def step(self, x: np.ndarray, state: Any, active: np.ndarray | None = None) -> np.ndarray:
-        """``theta_hat`` ``(B,)`` after the features ``x`` ``(B, N_FEATURES)`` of one step."""
+    """The committed student ``name`` (or the one at ``path``), ready for the kernel (float64)."""
+    return student.load_student(path or committed_weights(name, V1.version), LAYOUT, StudentConfig)
 
 
 class StudentController(Controller):
@@ -379,7 +258,7 @@ class StudentController(Controller):
     name = "rma_student"
 
     def __init__(
-        self, path: Path | None = None, net: ThetaNet | None = None, config: StudentConfig | None = None
+        self, path: Path | None = None, net: StudentNetLike | None = None, config: StudentConfig | None = None
     ) -> None:
         if net is None or config is None:
             net, config = load_student(self.name, path)

@@ -11,13 +11,12 @@ regenerate without the salt.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from scftc_cli.errors import UsageError
-from scftc_cli.sim.episodes import Episodes, generator
+from scftc_cli.sim.episodes import Episodes, generator, unit_norm
 from scftc_cli.sim.mrp import from_axis_angle
 from scftc_cli.spec import BenchmarkSpec, FaultClass
 from scftc_cli.versions.v1.spec import V1, RigidBodyPlant, RigidBodySplit
@@ -90,12 +89,6 @@ def sample_initial_state(plant: RigidBodyPlant, rng: np.random.Generator, n: int
     sigma0 = rng.uniform(-plant.sigma0_half_width, plant.sigma0_half_width, (n, 3))
     omega0 = rng.uniform(-plant.omega0_half_width_rad_s, plant.omega0_half_width_rad_s, (n, 3))
     return sigma0, omega0
-
-
-def unit_norm(v: np.ndarray) -> float:
-    """``|v|`` of a 3-vector summed left to right: the same bits on every CPU (``np.linalg.norm``
-    goes through BLAS, whose kernels differ in the last bit between CPUs, and a draw must not)."""
-    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 @functools.lru_cache(maxsize=64)

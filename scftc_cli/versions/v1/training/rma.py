@@ -7,13 +7,13 @@ aggregated in a replay buffer and the student's least-squares fit regresses the 
 ``theta = g/f`` at every step (``student_loss``).
 ``rma_dob``'s gain student flies with train-split biases and the disturbance observer in the
 loop, so the estimate it learns is the one the observer composes with, and reads only features
-that a constant bias cannot shift (``BIASED_FEATURES`` in ``baselines/rma.py``).
+that a constant bias cannot shift (``BIASED_FEATURES`` in ``controllers/rma.py``).
 
-The network is the torch module ``ThetaStudent`` (autograd). The trainer's rollouts (DAgger
-collection, checkpoint choice, the reported score) fly that module in float64 (``TorchStudentNet``),
-exactly as when the committed weights were trained, so `scftc train` regenerates them bit for bit;
-evaluation flies the same weights on the numba kernel (``StudentNet``, equal to ~1e-15, identical
-gates). The kept checkpoint is written as ``.npz``.
+The network is the shared torch module ``StudentModule`` (``training/student.py``, autograd). The
+trainer's rollouts (DAgger collection, checkpoint choice, the reported score) fly that module in
+float64 (``TorchStudentNet``), exactly as when the committed weights were trained, so `scftc
+train` regenerates them bit for bit; evaluation flies the same weights on the numba kernel
+(``StudentNet``, equal to ~1e-15, identical gates). The kept checkpoint is written as ``.npz``.
 Nothing here sees the test split; the checkpoint kept is the best on pinned *train* cells.
 """
 
@@ -26,86 +26,20 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 from torch.nn import functional
 
 from scftc_cli.baselines.params import save_params
+from scftc_cli.baselines.student import save_student
 from scftc_cli.protocol import Context
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.training import TrainReport, TrainRequest, numpy_state, train_settled_rates
-from scftc_cli.versions.v1.controllers.rma import (
-    DIFF_PAIR,
-    LOG_MAG_MAX,
-    LOG_MAG_MIN,
-    N_FEATURES,
-    PRIOR_WEIGHT,
-    RAW_PAIR,
-    LatchConfig,
-    StudentConfig,
-    StudentController,
-    save_student,
-    student_scale,
-)
+from scftc_cli.training.student import RMABudget, StudentModule, TorchState
+from scftc_cli.versions.v1.controllers.rma import LAYOUT, LatchConfig, StudentConfig, StudentController
 from scftc_cli.versions.v1.sim.faults import sample_episodes
 from scftc_cli.versions.v1.sim.testbed import public_context
 from scftc_cli.versions.v1.spec import V1
 
 OBSERVER_GAIN = 0.1  # lambda ~ 0.1 keeps the observer pole inside the envelope
-TorchState = tuple[torch.Tensor | None, torch.Tensor | float, torch.Tensor | float]
-
-
-class ThetaStudent(nn.Module):
-    """Per-axis GRU: features ``(B, T, N_FEATURES)`` -> ``theta_hat`` ``(B, T)``, with ``B`` the
-    number of (episode, axis) sequences; the network that ``StudentNet`` (``baselines/rma.py``)
-    runs in evaluation.
-
-    The output is a least-squares fit whose sample weights and prior the GRU chooses:
-
-        theta_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t
-
-    with ``(x, y) = (a, dW)``, or ``(da, ddW)`` for a bias-invariant student (``y = theta x``
-    exactly in either case, up to the gyroscopic rounding), ``w_s >= 0`` a learned per-step
-    weight (zero where the pair was not measured) and ``m_t = tanh(logit / 2) |theta|_hat`` a
-    learned prior guess of fixed strength ``PRIOR_WEIGHT``. The GRU decides which samples to trust
-    and what to say before the data are informative; the data, not the network's output range,
-    decide the size of the answer. A plain regression head cannot answer outside the ``|theta|``
-    it was trained on (the held-out split's authorities go below the train range by
-    construction, docs/benchmark.md); this one is equivariant to the authority's scale once the data
-    outweigh the prior.
-    """
-
-    scale: torch.Tensor  # a registered buffer
-
-    def __init__(self, hidden: int = 32, bias_invariant: bool = False) -> None:
-        super().__init__()
-        self.register_buffer("scale", torch.from_numpy(student_scale(bias_invariant)))
-        self.pair = DIFF_PAIR if bias_invariant else RAW_PAIR
-        self.inp = nn.Linear(N_FEATURES, hidden)
-        self.gru = nn.GRU(hidden, hidden, batch_first=True)
-        self.head = nn.Sequential(nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 3))
-
-    def heads(
-        self, x: torch.Tensor, state: TorchState | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, TorchState]:
-        """``(sign_logit, log_magnitude, theta_hat, state)``, the first three ``(B, T)``: the
-        prior's two heads (magnitude clamped to ``[LOG_MAG_MIN, LOG_MAG_MAX]``) and the fit."""
-        h0, sxy0, sxx0 = state if state is not None else (None, 0.0, 0.0)
-        y, h = self.gru(torch.tanh(self.inp(x * self.scale)), h0)
-        out = self.head(y)
-        logit, log_mag = out[..., 0], out[..., 1].clamp(LOG_MAG_MIN, LOG_MAG_MAX)
-        prior = torch.tanh(0.5 * logit) * torch.exp(log_mag)
-        col_x, col_y, col_valid = self.pair
-        weight = functional.softplus(out[..., 2]) * x[..., col_valid]
-        xs, ys = x[..., col_x], x[..., col_y]
-        sxy = sxy0 + torch.cumsum(weight * xs * ys, dim=1)
-        sxx = sxx0 + torch.cumsum(weight * xs * xs, dim=1)
-        theta = (sxy + PRIOR_WEIGHT * prior) / (sxx + PRIOR_WEIGHT)
-        return logit, log_mag, theta, (h, sxy[:, -1:], sxx[:, -1:])
-
-    def forward(self, x: torch.Tensor, state: TorchState | None = None) -> tuple[torch.Tensor, TorchState]:
-        """``(theta_hat (B, T), state)``; pass ``state`` back in to continue the sequences."""
-        _, _, theta, state = self.heads(x, state)
-        return theta, state
 
 
 @dataclass
@@ -125,7 +59,7 @@ class TorchStudentNet:
     hence different training data, and the weights must regenerate bit for bit.
     """
 
-    def __init__(self, model: ThetaStudent) -> None:
+    def __init__(self, model: StudentModule) -> None:
         self.model = copy.deepcopy(model).double().eval()
 
     def start(self, rows: int) -> TorchStudentState:
@@ -138,23 +72,6 @@ class TorchStudentNet:
         )
         state.theta = theta[:, 0].double().numpy()
         return state.theta
-
-
-@dataclass(frozen=True)
-class RMABudget:
-    """How much work one training run does."""
-
-    iterations: int
-    episodes: int  # fresh episodes flown per iteration
-    grad_steps: int  # gradient steps per iteration
-    minibatch: int  # (episode, axis) sequences per gradient step (scftc-v2: (episode, wheel))
-    buffer_iterations: int  # DAgger aggregation: keep this many iterations' data
-    teacher_fraction: float  # teacher mixing decays from 1 to 0 over this fraction of the run
-    lr: float
-    eval_every: int
-    eval_faults: int  # pinned train cells used to pick the checkpoint (x eval_seeds)
-    eval_seeds: int
-    hidden: int = 32
 
 
 BUDGETS: dict[str, RMABudget] = {
@@ -211,7 +128,7 @@ class _DaggerController(StudentController):
 
 
 def settled_rate(
-    model: ThetaStudent, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
+    model: StudentModule, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
 ) -> float:
     """Mean settled rate over the pinned *train* cells of ``classes``."""
     net = TorchStudentNet(model)
@@ -221,7 +138,7 @@ def settled_rate(
     return float(np.mean(list(rates.values())))
 
 
-def student_loss(model: ThetaStudent, x: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
+def student_loss(model: StudentModule, x: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
     """Over every step of the sequences ``x`` ``(B, T, F)`` of axes whose true authority is
     ``theta`` ``(B,)``: Huber on the fit's relative error ``(theta_hat - theta) / |theta|`` (the
     closed loop cares about the ratio), plus cross-entropy on the prior's sign and Huber on its
@@ -250,7 +167,7 @@ def train_student(request: TrainRequest) -> TrainReport:
     rng = np.random.default_rng(request.seed)
     start = time.monotonic()
     try:
-        model = ThetaStudent(config.hidden, config.bias_invariant)
+        model = StudentModule(LAYOUT, config.hidden, config.bias_invariant)
         opt = torch.optim.Adam(model.parameters(), lr=budget.lr)
         total_steps = budget.iterations * budget.grad_steps
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, total_steps, eta_min=budget.lr / 20)

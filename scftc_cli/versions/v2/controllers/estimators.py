@@ -29,7 +29,7 @@ All arrays are batch-first: ``(n, m)`` per wheel, ``m = 4``; torques in units of
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -82,33 +82,58 @@ def mean_coulomb_shape(start_rad_s: np.ndarray, end_rad_s: np.ndarray, linear_ra
 
 @dataclass(frozen=True)
 class WheelSample:
-    """One step's measurement of every wheel ``(n, m)`` each.
+    """One step's measurement of every wheel ``(n, m)`` each (``WheelTorqueMeter``).
 
     Attributes:
-        z: realized normalized torque minus the known viscous part, ``clip(g a + b) + kappa s``.
-        a: the command held over the step (as clipped by the simulator).
-        s: the mean Coulomb shape over the step, in ``[-1, 1]``.
-        speed_rad_s: the tachometer at the start of the step.
+        z: realized normalized torque with the friction the model already knows taken out: on the
+            ``ramp`` model the viscous part (``clip(g a + b) + kappa s``), on the ``trapezoid``
+            model the nominal friction (``clip(g a + b) + (m - 1) phi0 s``).
+        a: the command held over the step (as clipped by the simulator; zeros where none was held).
+        s: the friction's shape over the step per unit Coulomb level (``-sign(Omega)`` outside the
+            linear zone).
+        speed_rad_s, end_speed_rad_s: the tachometer at the start and at the end of the step.
     """
 
     z: np.ndarray
     a: np.ndarray
     s: np.ndarray
     speed_rad_s: np.ndarray
+    end_speed_rad_s: np.ndarray | None = None
 
     def regressor(self) -> np.ndarray:
         """``x = [a, 1, s]`` ``(n, m, 3)``: ``z = x . [g, b, kappa]`` while unclipped."""
         return np.stack((self.a, np.ones_like(self.a), self.s), axis=-1)
 
 
-class WheelTorqueMeter:
-    """Remembers the last gyro, tachometer and command of a batch so that each ``act`` can read the
-    step that just ended. Per step: ``sample = meter.read(gyro, tach)`` (``None`` on the first
-    step), compute the command, then ``meter.hold(command)``."""
+FrictionMean = Literal["ramp", "trapezoid"]
 
-    def __init__(self, context: Context, wheels: WheelKnowledge) -> None:
-        self.wheels = wheels
-        self.scale = wheels.spin_inertia_kgm2 / (context.dt_s * wheels.u_max_nm)
+
+class WheelTorqueMeter:
+    """Each wheel's realized torque over the step that just ended, from the last gyro and
+    tachometer readings and the command held (module docstring). Per step: ``sample =
+    meter.read(gyro, tach)`` (``None`` on the first step), compute the command, then
+    ``meter.hold(command)`` (optional: a caller may keep its own).
+
+    The friction the plant applied over a step depends on the speed within it, which two readings
+    do not pin down; ``friction`` names the model of its mean, per unit Coulomb level:
+
+    - ``"ramp"``: the exact mean of the Coulomb shape over a linear speed ramp between the two
+      readings (``mean_coulomb_shape``), the known viscous part added back to the torque. Right for
+      a torque held constant over the step, across the edge of the linear zone too: the
+      classical ports' model.
+    - ``"trapezoid"``: the mean of the whole friction law (viscous included, at the nominal
+      ``fC0``) at the two readings, taken out of the torque. Exact only where both readings sit on
+      one linear piece of the law; it is the RMA students' model, which their committed weights
+      were trained on, so it stays theirs (another model would change their inputs and numbers).
+
+    (``fdir``'s detector goes further and inverts the plant's own RK4 step: ``detection.friction_shape``.)
+    """
+
+    def __init__(self, context: Context, friction: FrictionMean) -> None:
+        self.wheels = w = wheels_of(context)
+        self.friction = friction
+        self.scale = w.spin_inertia_kgm2 / (context.dt_s * w.u_max_nm)
+        self.phi0 = w.coulomb_nm / w.u_max_nm
         self.gyro: np.ndarray | None = None
         self.tach: np.ndarray | None = None
         self.command: np.ndarray | None = None
@@ -117,13 +142,19 @@ class WheelTorqueMeter:
         """The sample of the step from the previous readings to ``gyro`` ``(n, 3)`` rad/s and
         ``tach`` ``(n, m)`` rad/s."""
         sample = None
-        if self.gyro is not None and self.tach is not None and self.command is not None:
-            w = self.wheels
+        if self.gyro is not None and self.tach is not None:
+            w, start = self.wheels, self.tach
             turned = (gyro - self.gyro) @ w.spin_axes.T
-            viscous = w.viscous_nms * 0.5 * (self.tach + tach) / w.u_max_nm
-            z = self.scale * (tach - self.tach + turned) + viscous
-            s = mean_coulomb_shape(self.tach, tach, w.omega_linear_rad_s)
-            sample = WheelSample(z=z, a=self.command, s=s, speed_rad_s=self.tach)
+            torque = self.scale * (tach - start + turned)
+            if self.friction == "ramp":
+                z = torque + w.viscous_nms * 0.5 * (start + tach) / w.u_max_nm
+                s = mean_coulomb_shape(start, tach, w.omega_linear_rad_s)
+            else:
+                nominal = friction_nm(start, w.coulomb_nm, w) + friction_nm(tach, w.coulomb_nm, w)
+                s = 0.5 * nominal / w.coulomb_nm
+                z = torque - self.phi0 * s
+            a = self.command if self.command is not None else np.zeros_like(tach)
+            sample = WheelSample(z=z, a=a, s=s, speed_rad_s=start, end_speed_rad_s=tach)
         self.gyro, self.tach = gyro.copy(), tach.copy()
         return sample
 
@@ -370,7 +401,7 @@ class EstimatingPort(Controller):
         number of wheels ``m``."""
         self.context, self.wheels = context, wheels_of(context)
         self.fuser = AttitudeFuser(n)
-        self.meter = WheelTorqueMeter(context, self.wheels)
+        self.meter = WheelTorqueMeter(context, friction="ramp")
         return len(self.wheels.spin_axes)
 
     @property

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scftc_cli.errors import UsageError
-from scftc_cli.sim.episodes import Episodes, generator, seed_sequence
+from scftc_cli.sim.episodes import Episodes, generator, seed_sequence, unit_norm
 from scftc_cli.spec import BenchmarkSpec, FaultClass
 from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S
 from scftc_cli.versions.v2.spec import V2, ReactionWheelPlant, WheelSplit
@@ -164,7 +164,7 @@ def sample_sensor_fault(
         head = int(rng.integers(heads))
     if sensor == "st_bias":
         v = rng.standard_normal(3)
-        axis = v / math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])  # left to right: CPU-independent
+        axis = v / unit_norm(v)
         bias = head_bias_mrp(axis, float(split.head_bias_deg.sample(rng, 1)[0]))
     if sensor == "gyro_bias":
         size = np.radians(split.gyro_bias_step_deg_s.sample(rng, 3))

@@ -1,6 +1,6 @@
 """Trainers of ``rma_student`` and ``rma_dob`` on ``scftc-v2``: DAgger on the train split.
 
-As on v1 (``training/rma.py``): each iteration flies a fresh batch of train-split episodes
+As on v1 (``versions/v1/training/rma.py``): each iteration flies a fresh batch of train-split episodes
 (``sample_episodes_batch``) with the student's own latched estimate in the loop (mixed, early on,
 with episodes allocated through the teacher's true ``g(t)``), so that the student learns on the
 states it will itself visit; the recorded per-wheel feature sequences, with the change test's
@@ -9,9 +9,10 @@ true effectiveness in force at every step on which the network ran (``student_lo
 ``rma_dob``'s student flies with its offset and friction observer in the loop and reads only
 bias-invariant features.
 
-The network is the torch module ``WheelStudent`` (autograd); the rollouts fly its weights with the
-deployed numba kernel (``StudentNet``), and the kept checkpoint is written as ``.npz``. Nothing
-here sees the test split; the checkpoint kept is the best on pinned *train* cells.
+The network is the shared torch module ``StudentModule`` (``training/student.py``, autograd); the
+rollouts fly its weights with the deployed numba kernel (``StudentNet``), and the kept checkpoint
+is written as ``.npz``. Nothing here sees the test split; the checkpoint kept is the best on
+pinned *train* cells.
 """
 
 from __future__ import annotations
@@ -23,27 +24,16 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 from torch.nn import functional
 
 from scftc_cli.baselines.params import save_params
+from scftc_cli.baselines.student import StudentNet, save_student
 from scftc_cli.protocol import Context
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.training import TrainReport, TrainRequest, numpy_state, train_settled_rates
-from scftc_cli.versions.v1.training.rma import RMABudget
-from scftc_cli.versions.v2.controllers.rma import (
-    DIFF_PAIR,
-    LOG_MAG_MAX,
-    LOG_MAG_MIN,
-    N_FEATURES,
-    PRIOR_WEIGHT,
-    RAW_PAIR,
-    StudentConfig,
-    StudentController,
-    StudentNet,
-    save_student,
-    student_scale,
-)
+from scftc_cli.training.student import RMABudget, StudentModule
+from scftc_cli.versions.v2.controllers.rma import StudentController
+from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
 from scftc_cli.versions.v2.sim.faults import sample_episodes_batch
 from scftc_cli.versions.v2.sim.testbed import public_context
 from scftc_cli.versions.v2.spec import V2
@@ -53,47 +43,6 @@ CLASSES = {
     "rma_dob": ("sign", "gain", "gain_bias", "friction", "loss"),
 }
 DEAD_SCALE = 0.1  # the relative error of a dead wheel's estimate is taken against this
-
-
-class WheelStudent(nn.Module):
-    """Per-wheel GRU: features ``(B, T, N_FEATURES)`` -> ``g_hat`` ``(B, T)``, ``B`` the number of
-    (episode, wheel) segments; the network that ``StudentNet`` (``baselines/v2/rma.py``) runs in
-    evaluation.
-
-    The output is v1's least-squares fit whose sample weights and prior the GRU chooses,
-
-        g_hat_t = (sum_s w_s x_s y_s + P m_t) / (sum_s w_s x_s^2 + P),  s <= t,
-
-    with ``(x, y) = (a, y)`` or, bias-invariant, ``(da, dy)``. Every sequence starts from a zero
-    state: a restart of the change test (which zeroes the kernel's hidden state and sums) begins a
-    new segment (``split_segments``).
-    """
-
-    scale: torch.Tensor  # a registered buffer
-
-    def __init__(self, hidden: int = 32, bias_invariant: bool = False) -> None:
-        super().__init__()
-        self.register_buffer("scale", torch.from_numpy(student_scale(bias_invariant)))
-        self.pair = DIFF_PAIR if bias_invariant else RAW_PAIR
-        self.inp = nn.Linear(N_FEATURES, hidden)
-        self.gru = nn.GRU(hidden, hidden, batch_first=True)
-        self.head = nn.Sequential(nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 3))
-
-    def heads(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """``(sign_logit, log_magnitude, g_hat)``, each ``(B, T)``."""
-        y, _ = self.gru(torch.tanh(self.inp(x * self.scale)))
-        out = self.head(y)
-        logit, log_mag = out[..., 0], out[..., 1].clamp(LOG_MAG_MIN, LOG_MAG_MAX)
-        prior = torch.tanh(0.5 * logit) * torch.exp(log_mag)
-        col_x, col_y, col_valid = self.pair
-        weight = functional.softplus(out[..., 2]) * x[..., col_valid]
-        xs, ys = x[..., col_x], x[..., col_y]
-        sxy = torch.cumsum(weight * xs * ys, dim=1)
-        sxx = torch.cumsum(weight * xs * xs, dim=1)
-        return logit, log_mag, (sxy + PRIOR_WEIGHT * prior) / (sxx + PRIOR_WEIGHT)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.heads(x)[2]
 
 
 def split_segments(restart: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -118,9 +67,9 @@ def split_segments(restart: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray
     return (inside, *out)
 
 
-def student_net(model: WheelStudent, config: StudentConfig) -> StudentNet:
+def student_net(model: StudentModule, config: StudentConfig) -> StudentNet:
     """The deployed (numba) form of ``model``'s current weights."""
-    return StudentNet.from_state(numpy_state(model), config.bias_invariant)
+    return StudentNet.from_state(numpy_state(model), LAYOUT, config.bias_invariant)
 
 
 BUDGETS: dict[str, RMABudget] = {
@@ -186,7 +135,7 @@ class _DaggerController(StudentController):
 
 
 def settled_rate(
-    model: WheelStudent, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
+    model: StudentModule, config: StudentConfig, classes: tuple[str, ...], n_faults: int, n_seeds: int
 ) -> float:
     """Mean settled rate over the pinned *train* cells of ``classes``."""
     net = student_net(model, config)
@@ -197,13 +146,13 @@ def settled_rate(
 
 
 def student_loss(
-    model: WheelStudent, x: torch.Tensor, active: torch.Tensor, gain: torch.Tensor
+    model: StudentModule, x: torch.Tensor, active: torch.Tensor, gain: torch.Tensor
 ) -> torch.Tensor:
     """Over the steps ``active`` ``(B, T)`` where the network ran (inside the segment, not latched)
     of segments ``x`` whose true effectiveness is ``gain`` ``(B, T)``: Huber on the fit's relative
     error (the allocation divides by it; a dead wheel's error is taken against ``DEAD_SCALE``),
     plus cross-entropy on the prior's sign (working wheels) and Huber on its ``log |g|``."""
-    logit, log_mag, g_hat = model.heads(x)
+    logit, log_mag, g_hat, _ = model.heads(x)
     weight = active.to(x.dtype)
     total = weight.sum().clamp_min(1.0)
     scale = gain.abs().clamp_min(DEAD_SCALE)
@@ -231,7 +180,7 @@ def train_student(request: TrainRequest) -> TrainReport:
     rng = np.random.default_rng(request.seed)
     start = time.monotonic()
     try:
-        model = WheelStudent(config.hidden, config.bias_invariant)
+        model = StudentModule(LAYOUT, config.hidden, config.bias_invariant)
         opt = torch.optim.Adam(model.parameters(), lr=budget.lr)
         total_steps = budget.iterations * budget.grad_steps
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, total_steps, eta_min=budget.lr / 20)

@@ -8,7 +8,7 @@ import pytest
 
 from scftc_cli.protocol import Progress
 from scftc_cli.registry import make_controller
-from scftc_cli.sim.mrp import principal_angle_deg, to_dcm
+from scftc_cli.sim.mrp import axis_mrp, compose, euler_pqp, principal_angle_deg, to_dcm, twist_swing, wrap
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.versions.v1.controllers.analytic import BiasOracle
 from scftc_cli.versions.v1.controllers.plan import (
@@ -18,14 +18,9 @@ from scftc_cli.versions.v1.controllers.plan import (
     SLEW,
     PlanParams,
     RLSPlan,
-    axis_mrp,
-    compose,
-    euler_pqp,
     plan_slews,
     ptos_accel,
     slew_time,
-    twist_swing,
-    wrap,
 )
 from scftc_cli.versions.v1.controllers.rls import RLSDob
 from scftc_cli.versions.v1.sim.faults import ActuatorFault, RigidEpisodes

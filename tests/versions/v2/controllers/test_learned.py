@@ -18,17 +18,16 @@ from scftc_cli.protocol import Context
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.versions.v2 import VERSION
+from scftc_cli.versions.v2.controllers.latch import CusumDetector
+from scftc_cli.versions.v2.controllers.observer import OffsetObserver
 from scftc_cli.versions.v2.controllers.ppo import E2EPPO
-from scftc_cli.versions.v2.controllers.rma import (
+from scftc_cli.versions.v2.controllers.rma import StudentController, student_effective_gain
+from scftc_cli.versions.v2.controllers.student import (
     N_FEATURES,
-    CusumDetector,
     DetectorConfig,
     ObserverConfig,
-    OffsetObserver,
     StudentConfig,
-    StudentController,
     load_student,
-    student_effective_gain,
 )
 from scftc_cli.versions.v2.sim.faults import SensorFault, WheelEpisodes, WheelFault
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
@@ -142,11 +141,12 @@ def test_evaluation_needs_no_torch() -> None:
 
 def _torch_student(name: str):  # type: ignore[no-untyped-def]
     torch = pytest.importorskip("torch")
-    from scftc_cli.versions.v2.training.rma import WheelStudent
+    from scftc_cli.training.student import StudentModule
+    from scftc_cli.versions.v2.controllers.student import LAYOUT
 
     arrays, doc = recurrent.load_weights(VERSION.weights_dir / f"{name}.npz")
     config = StudentConfig.from_dict(doc)
-    model = WheelStudent(config.hidden, config.bias_invariant)
+    model = StudentModule(LAYOUT, config.hidden, config.bias_invariant)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     return model.double().eval()
 
@@ -170,7 +170,7 @@ def test_student_kernel_matches_torch_on_recorded_rollouts(name: str) -> None:
         mine = net.run(x, restart)  # every step, latched or not
         inside, segments = split_segments(restart, x)
         with torch.no_grad():
-            reference = model(torch.from_numpy(segments)).numpy()
+            reference = model(torch.from_numpy(segments))[0].numpy()
         # put the segments back in place
         row, start = np.nonzero(np.where(np.arange(V2.steps) == 0, True, restart))
         placed = np.zeros_like(mine)
@@ -233,7 +233,7 @@ def test_tachometers_measure_each_wheels_realized_torque() -> None:
         def act(self, obs: np.ndarray) -> np.ndarray:
             _, _, gyro, tach = (obs[:, :9], obs[:, 9:12], obs[:, 12:15], obs[:, 15:19])
             meter = self.estimator.meter
-            last = meter.last
+            last = None if meter.gyro is None or meter.tach is None else (meter.gyro, meter.tach)
             command = super().act(obs)
             if last is not None:
                 self.samples.append((last, gyro.copy(), tach.copy()))
