@@ -108,10 +108,14 @@ def battery_bars(
     return fig
 
 
+BIAS_CLASS = "gain_bias"
+"""The class whose cells the bias-wall figure shows (drawn where a version has it)."""
+
+
 def bias_wall(results: list[EvalResult], colors: dict[str, tuple] | None = None) -> Figure:
     """The additive-bias wall: every controller's gain_bias cell, settled vs operational."""
     rows = [
-        (r, next(c for c in r.cells if c.fault_class == "gain_bias" and c.sensor is None)) for r in results
+        (r, next(c for c in r.cells if c.fault_class == BIAS_CLASS and c.sensor is None)) for r in results
     ]
     colors = colors or _colors([r.controller for r in results])
     fig, ax = plt.subplots(figsize=(12, 0.55 * len(rows) + 2.0))
@@ -747,15 +751,15 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
     battery = study.battery.results
     colors = _colors([r.controller for r in battery])  # one colour per controller in every figure
     sensor = study.sensor
-    figures = {
-        "battery_settled": battery_bars(study.spec, battery, colors),
-        "bias_wall": bias_wall(battery, colors),
-        "settled_vs_touch": settled_vs_touch(study.spec, battery, colors),
-        "trajectories": trajectories(study.spec, study.trajectories, colors),
-        "sensor_faults": sensor_faults(
+    figures = {"battery_settled": battery_bars(study.spec, battery, colors)}
+    if BIAS_CLASS in study.spec.fault_classes:
+        figures["bias_wall"] = bias_wall(battery, colors)
+    figures["settled_vs_touch"] = settled_vs_touch(study.spec, battery, colors)
+    figures["trajectories"] = trajectories(study.spec, study.trajectories, colors)
+    if study.spec.sensor_faults:
+        figures["sensor_faults"] = sensor_faults(
             study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
-        ),
-    }
+        )
     privileged = {r.controller: r.privileged for r in battery}
     outcomes, columns = cell_outcomes(study), outcome_columns(study)
     figures["final_error_profile"] = final_error_profile(study.spec, outcomes, columns, privileged, colors)
