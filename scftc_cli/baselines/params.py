@@ -12,7 +12,7 @@ import datetime as dt
 import inspect
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import yaml
 from pydantic import BaseModel, Field
@@ -67,6 +67,17 @@ def committed_weights(controller: str, benchmark: str) -> Path:
     if not path.exists():
         raise ScftcError(f"no weights at {path}; run `{train_command(controller, benchmark)}`")
     return path
+
+
+class Tuned:
+    """Mixin of a controller with tuned parameters (a frozen dataclass ``params_type``): built with
+    ``params``, or with the committed ones of ``tuned_as = (controller name, version)``."""
+
+    params_type: ClassVar[type]
+    tuned_as: ClassVar[tuple[str, str]]
+
+    def __init__(self, params: Any = None) -> None:
+        self.params = params if params is not None else self.params_type(**committed_params(*self.tuned_as))
 
 
 def save_params(controller: str, params: dict[str, Any], provenance: Provenance, path: Path) -> Path:

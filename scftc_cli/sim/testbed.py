@@ -10,7 +10,8 @@ board and the command line only talk to this interface: each version's folder im
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import ClassVar
+from collections.abc import Mapping
+from typing import Any, ClassVar, Self
 
 import numpy as np
 
@@ -31,6 +32,11 @@ class Plant(ABC):
     """
 
     name: ClassVar[str]
+
+    @classmethod
+    @abstractmethod
+    def of(cls, episodes: Any) -> Self:
+        """A plant holding ``episodes``' initial states and faults (its version's episodes)."""
 
     @abstractmethod
     def step(self, k: int, command: np.ndarray) -> np.ndarray:
@@ -53,9 +59,16 @@ class Sensors(ABC):
 
 
 class Testbed(ABC):
-    """One benchmark version's simulator."""
+    """One benchmark version's simulator.
+
+    Attributes:
+        spec: the version's spec.
+        plants: backend -> ``"module:Class"`` of its ``Plant`` there, imported only when that
+            backend flies (Basilisk is an optional extra); a backend it lacks is refused.
+    """
 
     spec: BenchmarkSpec
+    plants: ClassVar[Mapping[str, str]]
 
     def draw(
         self,
@@ -99,9 +112,14 @@ class Testbed(ABC):
         cell's ``n_faults x n_seeds``, fault-major, every random number from the version's keyed
         streams (``sim/episodes.py``)."""
 
-    @abstractmethod
     def plant(self, episodes: Episodes, backend: str = "numpy") -> Plant:
         """A plant holding ``episodes``' initial states and faults, on ``backend``."""
+        check_backend(backend)
+        if backend not in self.plants:
+            raise UsageError(
+                f"{self.spec.version} has no {backend} backend (it has {', '.join(self.plants)})"
+            )
+        return load(self.plants[backend]).of(episodes)
 
     @abstractmethod
     def sensors(self, episodes: Episodes) -> Sensors:

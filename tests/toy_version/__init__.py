@@ -14,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.episodes import Episodes, generator
-from scftc_cli.sim.testbed import Plant, Sensors, Testbed, check_backend
+from scftc_cli.sim.testbed import Plant, Sensors, Testbed
 from scftc_cli.spec import (
     BenchmarkSpec,
     FaultClass,
@@ -88,6 +87,10 @@ class AxisEpisodes(Episodes):
 class AxisSim(Plant):
     name = "numpy"
 
+    @classmethod
+    def of(cls, episodes: AxisEpisodes) -> AxisSim:
+        return cls(episodes)
+
     def __init__(self, episodes: AxisEpisodes) -> None:
         p = SPEC.plant
         self.gain = episodes.fault.gain[:, 0]
@@ -116,6 +119,7 @@ class PerfectSensors(Sensors):
 
 class AxisTestbed(Testbed):
     spec = SPEC
+    plants = {"numpy": f"{__name__}:AxisSim", "reference": f"{__name__}:AxisSim"}
 
     def pinned(self, split, fault_class, sensor, n_faults, n_seeds, salt, start, stop) -> AxisEpisodes:
         ranges = SPEC.splits[split]
@@ -141,12 +145,6 @@ class AxisTestbed(Testbed):
             fault=AxisFault(np.array(gain)[:, None], np.zeros((m, 1)), np.ones(m)),
             angle0=np.array(angle0),
         ).readonly()
-
-    def plant(self, episodes: AxisEpisodes, backend: str = "numpy") -> Plant:  # type: ignore[override]
-        check_backend(backend)
-        if backend == "basilisk":
-            raise UsageError(f"{NAME} has no Basilisk backend")
-        return AxisSim(episodes)
 
     def sensors(self, episodes: Episodes) -> Sensors:
         return PerfectSensors()

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
 from scftc_cli.versions.v1.controllers.observer import TorqueMeter, square_dither
@@ -78,13 +78,12 @@ class SignVote:
         return flip
 
 
-class ClassicalAdaptive(Controller):
+class ClassicalAdaptive(Tuned, Controller):
     """Sign vote + normalized-gradient magnitude/bias law feeding the analytic law."""
 
     params_type = AdaptiveParams
-
-    def __init__(self, params: AdaptiveParams | None = None) -> None:
-        self.params = params or AdaptiveParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: AdaptiveParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
 from scftc_cli.versions.v1.controllers.observer import TorqueMeter, square_dither
@@ -114,13 +114,12 @@ class HistoryStack:
         return (self.y1 * r).sum(-1) / norm, r.sum(-1) / norm
 
 
-class ICLAdaptive(Controller):
+class ICLAdaptive(Tuned, Controller):
     """ICL estimate of ``(theta, beta)`` per axis feeding the analytic law."""
 
     params_type = ICLParams
-
-    def __init__(self, params: ICLParams | None = None) -> None:
-        self.params = params or ICLParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: ICLParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, torque_cap_nm
 from scftc_cli.versions.v1.spec import V1
@@ -60,13 +60,12 @@ def nussbaum_gain(zeta: np.ndarray, zeta0: float) -> np.ndarray:
     return zeta**2 * np.cos(zeta) / (zeta0**2 * np.cos(zeta0))
 
 
-class Nussbaum(Controller):
+class Nussbaum(Tuned, Controller):
     """Per-axis ``a = -N(zeta) (s + d_hat)`` with ``zeta`` and ``d_hat`` adapted from ``s``."""
 
     params_type = NussbaumParams
-
-    def __init__(self, params: NussbaumParams | None = None) -> None:
-        self.params = params or NussbaumParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: NussbaumParams
 
     def reset(self, n: int, context: Context) -> None:
         self.context = context

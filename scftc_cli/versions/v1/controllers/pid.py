@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, torque_cap_nm
 from scftc_cli.versions.v1.spec import V1
@@ -43,13 +43,12 @@ class PIDParams:
     integrate_below: float = 0.1
 
 
-class PID(Controller):
+class PID(Tuned, Controller):
     """Inertia-scaled MRP PID with anti-windup (fault-unaware)."""
 
     params_type = PIDParams
-
-    def __init__(self, params: PIDParams | None = None) -> None:
-        self.params = params or PIDParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: PIDParams
 
     def reset(self, n: int, context: Context) -> None:
         self.context = context

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.mrp import (
     TWO_PI,
@@ -274,7 +274,7 @@ class AxisOLS:
 # --- the controller -------------------------------------------------------------------------------
 
 
-class RLSPlan(Controller):
+class RLSPlan(Tuned, Controller):
     """See the module docstring and ``docs/rls_plan.md``.
 
     Per-episode state (arrays): ``mode``; the held axis ``held`` (the dead axis, or the weakest
@@ -284,9 +284,8 @@ class RLSPlan(Controller):
     """
 
     params_type = PlanParams
-
-    def __init__(self, params: PlanParams | None = None) -> None:
-        self.params = params or PlanParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: PlanParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

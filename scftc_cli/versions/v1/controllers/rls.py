@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
 from scftc_cli.versions.v1.controllers.observer import DisturbanceObserver, TorqueMeter, square_dither
@@ -99,13 +99,12 @@ class AxisRLS:
         self.p22 = np.where(active, p22 * scale, self.p22)
 
 
-class RLSDob(Controller):
+class RLSDob(Tuned, Controller):
     """Estimate-then-control: per-axis RLS of ``(theta, beta)``, latched, then the observer."""
 
     params_type = RLSParams
-
-    def __init__(self, params: RLSParams | None = None) -> None:
-        self.params = params or RLSParams(**committed_params(NAME, V1.version))
+    tuned_as = (NAME, V1.version)
+    params: RLSParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

@@ -8,10 +8,16 @@ All arrays are batch-first: ``sigma``, ``omega_rad_s``, ``torque_nm``, ``inertia
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Self
+
 import numpy as np
 
 from scftc_cli.sim.mrp import cross, dot, norm2, shadow_switch
 from scftc_cli.sim.testbed import Plant
+from scftc_cli.versions.v1.spec import V1
+
+if TYPE_CHECKING:
+    from scftc_cli.versions.v1.sim.faults import RigidEpisodes
 
 
 def derivatives(
@@ -69,6 +75,22 @@ class RigidPlant(Plant):
         self.gain = np.ascontiguousarray(gain, dtype=np.float64)
         self.bias = np.ascontiguousarray(bias, dtype=np.float64)
         self.tau_max_nm, self.dt_s = float(tau_max_nm), float(dt_s)
+
+    @classmethod
+    def of(cls, episodes: RigidEpisodes) -> Self:
+        """A plant holding ``episodes``' initial states and faults (the one place that maps an
+        episode onto the plant's arguments: ``I = f I0``)."""
+        plant, fault = V1.plant, episodes.fault
+        inertia = fault.inertia_scale[:, None] * np.asarray(plant.inertia_nominal_kgm2)
+        return cls(
+            episodes.sigma0,
+            episodes.omega0_rad_s,
+            inertia,
+            fault.gain,
+            fault.bias,
+            plant.tau_max_nm,
+            plant.dt_s,
+        )
 
     def torque_nm(self, command: np.ndarray) -> np.ndarray:
         """``(n, 3)`` body torque the faulty actuators apply for ``command`` ``(n, 3)``."""

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from scftc_cli.protocol import Context, TrueFault
-from scftc_cli.sim.testbed import Plant, Sensors, Testbed, check_backend
-from scftc_cli.versions.v1.sim.dynamics import ReferencePlant, RigidPlant
+from scftc_cli.sim.testbed import Sensors, Testbed
 from scftc_cli.versions.v1.sim.faults import RigidEpisodes, pinned_episodes
 from scftc_cli.versions.v1.sim.sensors import StarTrackerAndGyro
 from scftc_cli.versions.v1.spec import V1
@@ -17,44 +16,12 @@ class RigidBodyTestbed(Testbed):
 
     spec = V1
 
-    def pinned(
-        self,
-        split: str,
-        fault_class: str,
-        sensor: str | None,
-        n_faults: int,
-        n_seeds: int,
-        salt: bytes,
-        start: int,
-        stop: int,
-    ) -> RigidEpisodes:
-        return pinned_episodes(split, fault_class, sensor, n_faults, n_seeds, salt, start, stop)
-
-    def plant(self, episodes: RigidEpisodes, backend: str = "numpy") -> Plant:  # type: ignore[override]
-        check_backend(backend)
-        cls: type[RigidPlant]
-        if backend == "numpy":
-            from scftc_cli.versions.v1.sim.fast import FastPlant
-
-            cls = FastPlant
-        elif backend == "reference":
-            cls = ReferencePlant
-        else:
-            from scftc_cli.versions.v1.sim.basilisk import BasiliskPlant  # BackendUnavailable without bsk
-
-            cls = BasiliskPlant
-        plant = self.spec.plant
-        fault = episodes.fault
-        inertia = fault.inertia_scale[:, None] * np.asarray(plant.inertia_nominal_kgm2)
-        return cls(
-            episodes.sigma0,
-            episodes.omega0_rad_s,
-            inertia,
-            fault.gain,
-            fault.bias,
-            plant.tau_max_nm,
-            plant.dt_s,
-        )
+    plants = {
+        "numpy": "scftc_cli.versions.v1.sim.fast:FastPlant",
+        "reference": "scftc_cli.versions.v1.sim.dynamics:ReferencePlant",
+        "basilisk": "scftc_cli.versions.v1.sim.basilisk:BasiliskPlant",  # BackendUnavailable without bsk
+    }
+    pinned = staticmethod(pinned_episodes)
 
     def sensors(self, episodes: RigidEpisodes) -> Sensors:  # type: ignore[override]
         return StarTrackerAndGyro(episodes)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.estimators import (
     CENSORED_WEIGHT,
@@ -81,13 +81,12 @@ class AdaptiveParams:
     kd_s: float = KD_S
 
 
-class ClassicalAdaptive(EstimatingPort):
+class ClassicalAdaptive(Tuned, EstimatingPort):
     """Per-wheel sign vote + normalized-gradient magnitude/offset/friction law feeding the law."""
 
     params_type = AdaptiveParams
-
-    def __init__(self, params: AdaptiveParams | None = None) -> None:
-        self.params = params or AdaptiveParams(**committed_params(NAME, V2.version))
+    tuned_as = (NAME, V2.version)
+    params: AdaptiveParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.adaptive import predicted_torque, sample_weight
 from scftc_cli.versions.v2.controllers.estimators import (
@@ -206,13 +206,12 @@ def stack_step(
     return direction, arm
 
 
-class ICLAdaptive(EstimatingPort):
+class ICLAdaptive(Tuned, EstimatingPort):
     """ICL estimate of ``(g, b, kappa)`` per wheel feeding the law; stacks purged on a change."""
 
     params_type = ICLParams
-
-    def __init__(self, params: ICLParams | None = None) -> None:
-        self.params = params or ICLParams(**committed_params(NAME, V2.version))
+    tuned_as = (NAME, V2.version)
+    params: ICLParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

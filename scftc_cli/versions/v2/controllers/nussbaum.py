@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.mrp import cross
 from scftc_cli.versions.v2.controllers.law import (
@@ -68,13 +68,12 @@ def nussbaum_gain(zeta: np.ndarray, zeta0: float) -> np.ndarray:
     return zeta**2 * np.cos(zeta) / (zeta0**2 * np.cos(zeta0))
 
 
-class Nussbaum(Controller):
+class Nussbaum(Tuned, Controller):
     """Per-wheel ``a = -N(zeta) (s + d_hat - a_ff)`` with ``zeta`` and ``d_hat`` adapted from ``s``."""
 
     params_type = NussbaumParams
-
-    def __init__(self, params: NussbaumParams | None = None) -> None:
-        self.params = params or NussbaumParams(**committed_params(NAME, V2.version))
+    tuned_as = (NAME, V2.version)
+    params: NussbaumParams
 
     def reset(self, n: int, context: Context) -> None:
         self.context, self.wheels = context, wheels_of(context)

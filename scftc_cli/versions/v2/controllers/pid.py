@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v2.controllers.law import (
     KD_S,
@@ -55,13 +55,12 @@ class PIDParams:
     integrate_below: float = 0.1
 
 
-class PID(Controller):
+class PID(Tuned, Controller):
     """Nominal-allocation MRP PID with anti-windup and the law's feed-forwards (fault-unaware)."""
 
     params_type = PIDParams
-
-    def __init__(self, params: PIDParams | None = None) -> None:
-        self.params = params or PIDParams(**committed_params(NAME, V2.version))
+    tuned_as = (NAME, V2.version)
+    params: PIDParams
 
     def reset(self, n: int, context: Context) -> None:
         self.context, self.wheels = context, wheels_of(context)

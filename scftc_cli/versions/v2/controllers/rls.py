@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from scftc_cli.baselines.params import committed_params
+from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.estimators import (
     CENSORED_WEIGHT,
@@ -171,14 +171,13 @@ def _rls_step(  # pragma: no cover - compiled
                 latched[e, i] = True
 
 
-class RLSDob(EstimatingPort):
+class RLSDob(Tuned, EstimatingPort):
     """Estimate-then-control: per-wheel RLS of ``(g, b, kappa)``, latched, then the observer; a
     residual test re-opens the latch."""
 
     params_type = RLSParams
-
-    def __init__(self, params: RLSParams | None = None) -> None:
-        self.params = params or RLSParams(**committed_params(NAME, V2.version))
+    tuned_as = (NAME, V2.version)
+    params: RLSParams
 
     def reset(self, n: int, context: Context) -> None:
         p = self.params

@@ -379,9 +379,11 @@ class WheelPlantBase(Plant):
         self.applied_torque_nm = np.zeros((n, m))
 
     @classmethod
-    def of(cls, episodes: WheelEpisodes, constants: WheelConstants, **options: object) -> Self:
+    def of(cls, episodes: WheelEpisodes, constants: WheelConstants | None = None, **options: object) -> Self:
         """A plant holding ``episodes``' initial states and faults (the one place that maps an
-        episode onto the plant's arguments); ``options`` go to the backend (``parallel``)."""
+        episode onto the plant's arguments), with ``constants`` (``scftc-v2``'s by default);
+        ``options`` go to the backend (``parallel``)."""
+        constants = WheelConstants.of(V2.plant) if constants is None else constants
         fault = episodes.fault
         return cls(
             episodes.sigma0,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from scftc_cli.protocol import Context, WheelKnowledge
-from scftc_cli.sim.testbed import Plant, Sensors, Testbed, check_backend
-from scftc_cli.versions.v2.sim.dynamics import WheelConstants, WheelPlantBase
+from scftc_cli.sim.testbed import Sensors, Testbed
+from scftc_cli.versions.v2.sim.dynamics import WheelConstants
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes, WheelFault, pinned_episodes
 from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers, sensor_knowledge
 from scftc_cli.versions.v2.spec import V2, ReactionWheelPlant
@@ -17,37 +17,12 @@ class ReactionWheelTestbed(Testbed):
 
     spec = V2
 
-    def pinned(
-        self,
-        split: str,
-        fault_class: str,
-        sensor: str | None,
-        n_faults: int,
-        n_seeds: int,
-        salt: bytes,
-        start: int,
-        stop: int,
-    ) -> WheelEpisodes:
-        return pinned_episodes(split, fault_class, sensor, n_faults, n_seeds, salt, start, stop)
-
-    def plant(self, episodes: WheelEpisodes, backend: str = "numpy") -> Plant:  # type: ignore[override]
-        check_backend(backend)
-        cls: type[WheelPlantBase]
-        if backend == "numpy":
-            from scftc_cli.versions.v2.sim.fast import FastWheelPlant
-
-            cls = FastWheelPlant
-        elif backend == "reference":
-            from scftc_cli.versions.v2.sim.dynamics import WheelPlant
-
-            cls = WheelPlant
-        else:
-            from scftc_cli.versions.v2.sim.basilisk import (
-                BasiliskWheelPlant,  # BackendUnavailable without bsk
-            )
-
-            cls = BasiliskWheelPlant
-        return cls.of(episodes, CONSTANTS)
+    plants = {
+        "numpy": "scftc_cli.versions.v2.sim.fast:FastWheelPlant",
+        "reference": "scftc_cli.versions.v2.sim.dynamics:WheelPlant",
+        "basilisk": "scftc_cli.versions.v2.sim.basilisk:BasiliskWheelPlant",  # BackendUnavailable without bsk
+    }
+    pinned = staticmethod(pinned_episodes)
 
     def sensors(self, episodes: WheelEpisodes) -> Sensors:  # type: ignore[override]
         return HeadsGyroTachometers(episodes, self.spec)
