@@ -1,6 +1,6 @@
 """The layering the code promises: data flows one way, and nothing heavy sits on the start-up path.
 
-``spec -> sim -> scoring -> controllers -> evaluate``, then the packages that use them (board,
+``spec -> sim -> controllers -> scoring -> evaluate``, then the packages that use them (board,
 submission, study, training), then the command line; every module, each version folder's
 included, imports only its own layer and those below (``LAYERS``). Nothing outside a version
 folder names a version. Torch, matplotlib and scipy.stats are imported only by the modules that
@@ -23,8 +23,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "loading"),
     ("spec", "protocol", "versions"),
     ("sim",),
-    ("statistics", "records", "scoring"),
     ("baselines", "registry", "controllers", "submission"),
+    ("statistics", "records", "scoring"),
     ("evaluate", "distributed"),
     ("render", "training", "study", "board", "envs"),
     ("commands", "__main__"),

@@ -2,13 +2,13 @@
 gymnasium environment.
 
 An episode is one ``scftc-v2`` episode (docs/benchmark-v2.md): a fault drawn from the chosen split,
-actuator classes and sensor classes by ``sim.v2.faults.sample_episodes_batch`` (the pinned draws'
+actuator classes and sensor classes by ``sim.faults.sample_episodes_batch`` (the pinned draws'
 distribution), starting mid-flight at its onset; 400 steps of 0.5 s, then truncation. The agent
 observes exactly what a benchmark controller observes, the 19 values of ``HeadsGyroTachometers``
 (three star-tracker heads as MRPs, their validity flags, the gyro, four tachometers; optionally
 with its previous action appended), and commands four normalized motor torques in [-1, 1]; the
 fault is never part of the observation or of ``info``. The reward is shaped on the *measured*
-state: ``e`` the principal angle of the fused attitude (``baselines.v2.law.AttitudeFuser``: the
+state: ``e`` the principal angle of the fused attitude (``controllers.law.AttitudeFuser``: the
 median of the valid heads, propagated with the gyro through an outage) and ``w`` the gyro reading,
 
     r = -e_deg / 180 - |w| + 0.5 exp(-e_deg / 1 deg)

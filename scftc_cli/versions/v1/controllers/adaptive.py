@@ -2,7 +2,7 @@
 normalized-gradient adaptive law for the gain magnitude (and the bias), feeding the analytic law.
 
 Per body axis, every step ``k`` (``dW_k``: the measured normalized net torque of
-``baselines/observer.py``, ``a_k``: the clipped command held over step ``k``):
+``controllers/observer.py``, ``a_k``: the clipped command held over step ``k``):
 
 * **Direction (sign) identification** — a vote on first differences, which cancel any constant
   bias: ``d = dW_k - dW_k-1 ~= theta (a_k - a_k-1)``; where ``|da| > vote_min_da`` the vote counter

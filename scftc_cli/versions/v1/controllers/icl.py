@@ -9,7 +9,7 @@ this gives the ICL regression, which needs no acceleration measurement:
     U_j = [I0 (w(t) - w(t - T)) + int (w x I0 w)]_i / (tau_max T) = Y_j phi,
     Y_j = [mean of a over the window, 1]
 
-(computed from the per-step measured torque ``dW`` of ``baselines/observer.py``: ``U_j`` is the
+(computed from the per-step measured torque ``dW`` of ``controllers/observer.py``: ``U_j`` is the
 window mean of ``dW``). A history stack of ``stack_size`` pairs ``(Y_j, U_j)`` is filled and then
 curated: a new window replaces the stored one whose replacement most increases the minimum
 eigenvalue of ``M = sum_j Y_j' Y_j`` (Chowdhary & Johnson 2011 singular-value maximization), so the

@@ -3,7 +3,7 @@ disturbance observer, feeding the analytic law ("beyond the study": docs/control
 
 Law (per body axis ``i``, every step ``k``):
 
-* regression on the measured normalized net torque (``baselines/observer.py``)
+* regression on the measured normalized net torque (``controllers/observer.py``)
   ``y_k = dW_k = [a_k, 1] [theta, beta]' + e_k``;
 * RLS with exponential forgetting ``mu`` (Ljung & Soderstrom 1983; Astrom & Wittenmark,
   *Adaptive Control*, ch. 2):

@@ -10,7 +10,7 @@ together leaves every trajectory unchanged, so that regression can only learn a 
 
 The student is one small GRU shared by the three body axes: after the gyroscopic term is removed
 with the nominal inertia, each axis obeys ``dW_i = theta_i a_i + beta_i`` on its own
-(``baselines/observer.py``), so axis ``i`` is estimated from its own history of ``(a_i, dW_i,
+(``controllers/observer.py``), so axis ``i`` is estimated from its own history of ``(a_i, dW_i,
 sigma_i, w_i)``. Sharing the weights across axes makes the estimator blind to how many axes are
 reversed, which is exactly what the held-out sign patterns change.
 
@@ -285,7 +285,7 @@ class StudentController(Controller):
 
 
 class RMAStudent(StudentController):
-    """The RMA student; weights ``scftc_cli/weights/rma_student.npz``."""
+    """The RMA student; weights: this version's ``weights/rma_student.npz``."""
 
     name = "rma_student"
 

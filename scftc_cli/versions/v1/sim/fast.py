@@ -3,7 +3,7 @@
 It performs exactly the floating-point operations of ``dynamics.rk4_step`` and of the actuator
 fault ``(a g + b) tau_max``, in the same order (no fast-math, no contraction into fused
 multiply-adds), so its trajectories are bit-identical to the numpy reference;
-``tests/sim/test_fast.py`` checks that on whole episodes. The kernel works in place on
+``tests/versions/v1/sim/test_fast.py`` checks that on whole episodes. The kernel works in place on
 preallocated arrays: one pass over memory per step instead of ~150 numpy temporaries.
 """
 

@@ -187,7 +187,7 @@ def sample_episodes_batch(
     """``n`` fresh random episodes like ``sample_episodes`` (the same distribution, rule for rule),
     drawn as whole arrays: ~100x faster for large batches (the vector environment's reset), but a
     different random stream, so trainers that must regenerate committed weights bit for bit keep
-    ``sample_episodes``. ``tests/sim/v1/test_faults.py`` checks the two distributions agree."""
+    ``sample_episodes``. ``tests/versions/v1/sim/test_faults.py`` checks the two distributions agree."""
     if not classes:
         raise UsageError("name at least one fault class")
     for c in classes:

@@ -1,9 +1,9 @@
 """Trainer of ``e2e_ppo``: sb3-contrib ``RecurrentPPO`` on ``scftc/AttitudeFTC-v1`` (train split).
 
 The agent is trained from scratch on the vectorized environment (train-split ``sign``, ``gain``
-and ``gain_bias`` faults, reward shaped on the measured error and rates; ``envs/attitude.py``),
+and ``gain_bias`` faults, reward shaped on the measured error and rates; this version's ``envs.py``),
 then its actor is exported to the plain torch ``RecurrentPolicy`` and saved as ``.npz`` weights,
-which ``scftc eval`` runs with a numba kernel (``PolicyNet`` in ``baselines/ppo.py``); that deployed
+which ``scftc eval`` runs with a numba kernel (``PolicyNet`` in ``baselines/policy.py``); that deployed
 form is checked against sb3's own deterministic ``predict`` before it is saved.
 Needs the optional extra ``rl`` (``gymnasium``, ``sb3-contrib``); evaluation needs neither them
 nor torch.

@@ -278,7 +278,7 @@ def law_command(
 ) -> np.ndarray:
     """``null_dither(estimated_command(...), ...)`` ``(n, m)`` in one numba pass over the batch
     (what ``rls_dob`` calls each step; ``classical_adaptive`` and ``icl_adaptive`` call the two
-    numpy functions, with which they were tuned; ``tests/baselines/v2/test_classical.py`` checks
+    numpy functions, with which they were tuned; ``tests/versions/v2/controllers/test_classical.py`` checks
     it against the two numpy functions, its readable definition, to 1e-12 with up to one wheel
     estimated dead; with two or more the allocation is rank-deficient, the two forms differ, and
     this kernel is the definition)."""

@@ -13,8 +13,8 @@ Deployable (it never sees the fault). Three layers, each in its own module:
   rate, gyroscopic feed-forward), allocated through the estimated effective matrix
   ``pinv(G diag(g_hat))`` with each working wheel cancelling its estimated offset and friction.
 
-Tuned on the train split only (``scftc_cli/training/v2_fdir.py``); the committed parameters are
-``scftc_cli/params/v2/fdir.yaml``.
+Tuned on the train split only (this version's ``training/fdir.py``); the committed parameters are
+its ``params/fdir.yaml``.
 """
 
 from __future__ import annotations

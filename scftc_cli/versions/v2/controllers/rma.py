@@ -1,9 +1,9 @@
 """``rma_student`` and ``rma_dob`` on ``scftc-v2``: a GRU identifies each wheel, the analytic law controls.
 
-RMA (Kumar et al. 2021, arXiv 2107.04034) as on ``scftc-v1`` (``baselines/rma.py``): the teacher
+RMA (Kumar et al. 2021, arXiv 2107.04034) as on ``scftc-v1`` (``versions/v1/controllers/rma.py``): the teacher
 is the analytic law fed the true fault (``teacher``), the student a small recurrent network that
 infers the teacher's privileged input from the history of commands and responses, trained
-DAgger-style (``training/v2_rma.py``). On v2 the privileged input is per wheel, and so is the
+DAgger-style (``training/rma.py``). On v2 the privileged input is per wheel, and so is the
 student: the tachometers measure each wheel's realized torque (docs/benchmark-v2.md, section 5),
 
     y_k = Js (Omega_k+1 - Omega_k + g_i . (w_k+1 - w_k)) / (u_max dt) - psi_k phi0
@@ -268,13 +268,13 @@ class StudentController(Controller):
 
 
 class RMAStudent(StudentController):
-    """The RMA student; weights ``scftc_cli/weights/v2/rma_student.npz``."""
+    """The RMA student; weights: this version's ``weights/rma_student.npz``."""
 
     name = "rma_student"
 
 
 class RMADob(StudentController):
     """The bias-invariant student with the per-wheel offset and friction observer; weights
-    ``scftc_cli/weights/v2/rma_dob.npz``."""
+    this version's ``weights/rma_dob.npz``."""
 
     name = "rma_dob"

@@ -3,7 +3,7 @@
 The kernel performs exactly the floating-point operations of ``v2.dynamics`` (fault switch at
 the onset, motor torque with clip and speed saturation, four RK4 stages with friction at each,
 shadow switch) in the same order, with no fast-math and no contraction into fused multiply-adds,
-so its trajectories are bit-identical to the numpy reference; ``tests/sim/v2/test_fast.py``
+so its trajectories are bit-identical to the numpy reference; ``tests/versions/v2/sim/test_fast.py``
 checks that on whole episodes. State lives in scalars (four wheels, unrolled by hand) and the
 arrays are updated in place: one pass over memory per step instead of hundreds of numpy
 temporaries. The per-episode matrices ``I_tot`` and ``D^-1`` come from ``MassProperties``, the

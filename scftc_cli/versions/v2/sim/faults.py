@@ -262,7 +262,7 @@ def sample_episodes_batch(
     as whole arrays from ``rng``: each of an actuator class uniform over ``classes`` and a sensor
     class uniform over ``sensors`` (``None``: healthy sensors; a sensor fault turns its episode's
     actuator fault into a ``sign`` fault, as in the benchmark's sensor cells). The distribution of
-    every parameter is the pinned draws' (``tests/sim/v2/test_faults.py`` checks it); the random
+    every parameter is the pinned draws' (``tests/versions/v2/sim/test_faults.py`` checks it); the random
     stream is not.
     """
     if not classes or not sensors:
