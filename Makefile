@@ -1,6 +1,6 @@
 # The two commands of the README quick start. Each sets up what it needs on first use.
-#   make reproduce   -> both versions' battery and sensor tables and figures, in results/scftc-v1/ and
-#                       results/scftc-v2/ (base install: no torch)
+#   make reproduce   -> every version's battery and sensor tables and figures, in results/<version>/
+#                       (base install: no torch)
 #   make test        -> system packages, full install, lint, format and type checks, workflow lint,
 #                       schema check, the test suite, leaderboard verify (what .ci/run runs)
 # The GitHub workflows (.github/workflows/) call the targets below, so what runs in Actions runs here:
@@ -74,9 +74,11 @@ allow-userns:
 	  echo "allowed unprivileged user namespaces (kernel.apparmor_restrict_unprivileged_userns=0)"; \
 	fi
 
+# Every registered benchmark version (scftc_cli/versions), the default first.
+VERSIONS = $$($(BIN)/python -c 'from scftc_cli.versions import version_names; print(*version_names())')
+
 reproduce: setup
-	$(BIN)/scftc reproduce
-	$(BIN)/scftc reproduce --benchmark scftc-v2
+	for version in $(VERSIONS); do $(BIN)/scftc reproduce --benchmark $$version || exit 1; done
 
 test: setup-dev lint-workflows
 	$(BIN)/ruff check $(SOURCES)
@@ -84,8 +86,7 @@ test: setup-dev lint-workflows
 	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
 	SCFTC_FORBID_SKIPS=1 $(BIN)/pytest -q
-	$(BIN)/scftc leaderboard verify
-	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
+	for version in $(VERSIONS); do $(BIN)/scftc leaderboard verify --benchmark $$version || exit 1; done
 
 lint: setup-dev
 	$(BIN)/ruff check $(SOURCES)
@@ -108,8 +109,7 @@ score-pr: setup-dev allow-userns
 
 seal-rounds: setup-dev allow-userns
 	$(BIN)/scftc leaderboard land --seal
-	$(BIN)/scftc leaderboard verify
-	$(BIN)/scftc leaderboard verify --benchmark scftc-v2
+	for version in $(VERSIONS); do $(BIN)/scftc leaderboard verify --benchmark $$version || exit 1; done
 
 publish-boards:
 	git add leaderboard/ && git diff --cached --quiet || git commit -m "Boards: new submissions landed, rounds sealed"
@@ -118,5 +118,6 @@ publish-boards:
 site: setup
 	mkdir -p site
 	$(BIN)/scftc leaderboard --format html --out site/index.html
-	$(BIN)/scftc reproduce --out site/results/scftc-v1
-	$(BIN)/scftc reproduce --benchmark scftc-v2 --out site/results/scftc-v2
+	for version in $(VERSIONS); do \
+	  $(BIN)/scftc reproduce --benchmark $$version --out site/results/$$version || exit 1; \
+	done

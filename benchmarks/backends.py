@@ -22,7 +22,7 @@ from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.records import CellResult
 from scftc_cli.registry import make_controller
 from scftc_cli.sim import BACKENDS
-from scftc_cli.spec import V1 as SPEC
+from scftc_cli.versions.v1.spec import V1 as SPEC
 
 
 def time_cell(backend: str, cell: Cell, controller: str, repeats: int) -> tuple[float, CellResult]:
@@ -69,7 +69,7 @@ def main() -> None:
     print(f"numpy / basilisk: {ratio:.1f}x faster (same k on every gate: {same_k})")
 
     if args.out is not None:
-        from scftc_cli.sim.v1.basilisk import basilisk_version
+        from scftc_cli.versions.v1.sim.basilisk import basilisk_version
 
         doc = {
             "benchmark_version": SPEC.version,

@@ -26,7 +26,7 @@ from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.distributed.runner import cluster
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.registry import make_controller
-from scftc_cli.spec import V1
+from scftc_cli.versions.v1.spec import V1
 
 BIG = (500, 100)  # 50 000 episodes
 

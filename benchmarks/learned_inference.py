@@ -18,8 +18,8 @@ import time
 from scftc_cli.protocol import Controller
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v1.faults import draw_episodes
-from scftc_cli.spec import V1
+from scftc_cli.versions.v1.sim.testbed import TESTBED
+from scftc_cli.versions.v1.spec import V1
 
 LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
 
@@ -45,7 +45,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--controllers", nargs="*", default=list(LEARNED) + ["pd"])
     args = parser.parse_args()
-    episodes = draw_episodes("test", "gain_bias")
+    episodes = TESTBED.draw("test", "gain_bias")
     for name in args.controllers:
         rollout(make_controller(name), episodes.subset(slice(0, 8)))  # warm-up (JIT, caches)
         act_ms, total_ms = [], []

@@ -26,8 +26,9 @@ import numpy as np
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.registry import make_controller, registry
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v1.faults import RigidEpisodes, draw_episodes
-from scftc_cli.spec import V1
+from scftc_cli.versions.v1.sim.faults import RigidEpisodes
+from scftc_cli.versions.v1.sim.testbed import TESTBED
+from scftc_cli.versions.v1.spec import V1
 
 STEPS = V1.steps
 
@@ -35,7 +36,7 @@ STEPS = V1.steps
 def tiled_episodes(n: int) -> RigidEpisodes:
     """``n`` episodes made by tiling the held-out ``gain`` cell (drawing 100 000 fresh seeds would
     time the sampler, not the simulator)."""
-    cell = draw_episodes("test", "gain")
+    cell = TESTBED.draw("test", "gain")
     return cell.subset(np.arange(n) % cell.n)
 
 
@@ -86,7 +87,7 @@ def main() -> None:
 
     have_rma_dob = "rma_dob" in registry()
     if have_rma_dob:
-        episodes = draw_episodes("test", "gain_bias")
+        episodes = TESTBED.draw("test", "gain_bias")
         t_pd = best_time(lambda: rollout(make_controller("pd"), episodes), repeats)
         t_rma = best_time(lambda: rollout(make_controller("rma_dob"), episodes), repeats)
         results["rma_dob_overhead"] = {

@@ -36,9 +36,9 @@ import numba
 import numpy as np
 
 from scftc_cli.sim.mrp import cross
-from scftc_cli.sim.v2.dynamics import RPM_TO_RAD_S, WheelConstants, WheelPlant
-from scftc_cli.sim.v2.fast import PARALLEL_MIN_BATCH, FastWheelPlant
-from scftc_cli.spec import V2
+from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S, WheelConstants, WheelPlant
+from scftc_cli.versions.v2.sim.fast import PARALLEL_MIN_BATCH, FastWheelPlant
+from scftc_cli.versions.v2.spec import V2
 
 CONSTANTS = WheelConstants.of(V2.plant)
 STEPS = 400
@@ -178,8 +178,8 @@ def main() -> None:
     results["throughput"] = rows
 
     try:
-        from scftc_cli.sim.v1.basilisk import basilisk_version
-        from scftc_cli.sim.v2.basilisk import BasiliskWheelPlant
+        from scftc_cli.versions.v1.sim.basilisk import basilisk_version
+        from scftc_cli.versions.v2.sim.basilisk import BasiliskWheelPlant
     except ImportError as err:  # BackendUnavailable: report, don't fail
         results["basilisk"] = f"skipped: {err}"
         print(results["basilisk"])

@@ -47,9 +47,10 @@ import numpy as np
 from scftc_cli.protocol import Progress
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v2 import TESTBED, fast
-from scftc_cli.sim.v2.faults import WheelEpisodes
-from scftc_cli.spec import V2
+from scftc_cli.versions.v2.sim import fast
+from scftc_cli.versions.v2.sim.faults import WheelEpisodes
+from scftc_cli.versions.v2.sim.testbed import TESTBED
+from scftc_cli.versions.v2.spec import V2
 
 STEPS = V2.steps
 BATCHES = (1, 500, 10_000)
@@ -123,8 +124,8 @@ def loop_rate(n: int, backend: str, steps: int, repeats: int, serial: bool = Fal
 def basilisk_rate(n: int, short: int, long: int) -> dict | str:
     """Basilisk flown ``short`` then ``long`` steps on ``n`` episodes; build and step apart, scaled."""
     try:
-        from scftc_cli.sim.v1.basilisk import basilisk_version
-        from scftc_cli.sim.v2.basilisk import BasiliskWheelPlant  # noqa: F401  (BackendUnavailable)
+        from scftc_cli.versions.v1.sim.basilisk import basilisk_version
+        from scftc_cli.versions.v2.sim.basilisk import BasiliskWheelPlant  # noqa: F401  (BackendUnavailable)
     except ImportError as err:  # report, don't fail
         return f"skipped: {err}"
     episodes = tiled_episodes(n)
@@ -150,7 +151,7 @@ def basilisk_rate(n: int, short: int, long: int) -> dict | str:
 
 def vector_env_rate(num_envs: int, repeats: int, serial: bool = False) -> dict[str, float]:
     """Zero actions through ``AttitudeFTCv2VectorEnv``: one whole episode, autoreset included."""
-    from scftc_cli.envs.wheels import AttitudeFTCv2VectorEnv
+    from scftc_cli.versions.v2.envs import AttitudeFTCv2VectorEnv
 
     threshold = fast.PARALLEL_MIN_BATCH
     fast.PARALLEL_MIN_BATCH = sys.maxsize if serial else threshold

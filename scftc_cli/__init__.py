@@ -1,4 +1,10 @@
-"""SCFTC: the honest benchmark for spacecraft attitude fault-tolerant control."""
+"""SCFTC: the honest benchmark for spacecraft attitude fault-tolerant control.
+
+Importing the package imports nothing of it. Where gymnasium is (or later gets) imported, the
+package's environments are registered with it (``envs.register``): gymnasium 1.x loads no plugin
+entry points, so a post-import hook does it, naming the registration by its ``"module:attr"``
+(``ENVIRONMENTS``) so that the package root depends on no layer.
+"""
 
 from __future__ import annotations
 
@@ -19,11 +25,20 @@ PINNED_NUMERICS = (
 """The same floating-point kernels on every x86-64 machine: OpenBLAS's Haswell kernels (AVX2, FMA)
 and numpy's loops without AVX-512. OpenBLAS and numpy otherwise pick kernels by CPU, and the
 closed loop amplifies their last-bit differences: measured, the OpenBLAS kernel alone moves
-``fdir``'s held-out scftc-v2 ``loss`` cell from 491 to 492 settled episodes. Both libraries read
-these variables when they load, so they are set here, before numpy is imported by anything of ours
-(the test suite's conftest sets them too; a user's value is kept)."""
+``fdir``'s held-out ``loss`` cell of the reaction-wheel track from 491 to 492 settled episodes.
+Both libraries read these variables when they load, so they are set here, before numpy is imported
+by anything of ours (the test suite's conftest sets them too; a user's value is kept)."""
 for _name, _value in PINNED_NUMERICS.items():
     os.environ.setdefault(_name, _value)
+
+ENVIRONMENTS = "scftc_cli.envs:register"
+"""What registers the gymnasium environments, loaded once gymnasium is imported."""
+
+
+def _register_environments() -> None:
+    from scftc_cli.loading import load
+
+    load(ENVIRONMENTS)()
 
 
 class _AfterGymnasium(importlib.abc.MetaPathFinder):
@@ -42,17 +57,13 @@ class _AfterGymnasium(importlib.abc.MetaPathFinder):
 
         def exec_module(module: ModuleType) -> None:
             execute(module)
-            from scftc_cli.envs import register
-
-            register()
+            _register_environments()
 
         loader.exec_module = exec_module  # type: ignore[method-assign]
         return spec
 
 
 if "gymnasium" in sys.modules:
-    from scftc_cli.envs import register as _register
-
-    _register()
+    _register_environments()
 elif not any(isinstance(f, _AfterGymnasium) for f in sys.meta_path):
     sys.meta_path.insert(0, _AfterGymnasium())

@@ -7,7 +7,7 @@ builds a fresh instance, a sandboxed submission hands back its proxy.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -205,7 +205,8 @@ class ControllerChoice:
         name: shown in tables and records.
         make: a fresh controller per cell.
         ref: what a cluster's workers rebuild the controller from.
-        artifacts: files whose sha256 goes into the result's provenance.
+        artifacts: files whose sha256 goes into the result's provenance: a built-in's packaged
+            files by key, or the files given on the command line.
         source_file: the submitted file, for a local run.
     """
 
@@ -213,7 +214,7 @@ class ControllerChoice:
     privileged: bool
     make: ControllerFactory
     ref: ControllerRef
-    artifacts: tuple[Path, ...] = ()
+    artifacts: Mapping[str, Path] | tuple[Path, ...] = ()
     source_file: Path | None = None
 
 
@@ -245,7 +246,7 @@ def choose_controller(
     if params is None:
         plain = BuiltinRef(name, spec.version)
         return ControllerChoice(
-            name, entry.privileged, lambda _cell: entry.make(), plain, tuple(entry.artifact_paths())
+            name, entry.privileged, lambda _cell: entry.make(), plain, entry.artifact_files()
         )
     from scftc_cli.baselines.params import controller_from_artifact
 

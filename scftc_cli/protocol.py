@@ -11,6 +11,7 @@ import it without pulling in the battery, torch or the command line.
 
 from __future__ import annotations
 
+import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields, is_dataclass
 from typing import Any, ClassVar
@@ -20,7 +21,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class TrueFault:
-    """``scftc-v1``'s identifiable fault per episode: ``theta = g/f``, ``beta = b/f``, ``(n, 3)``."""
+    """A body-torque plant's identifiable fault per episode: ``theta = g/f``, ``beta = b/f``, ``(n, 3)``
+    (what a privileged oracle of such a plant is handed)."""
 
     theta: np.ndarray
     beta: np.ndarray
@@ -28,7 +30,7 @@ class TrueFault:
 
 @dataclass(frozen=True)
 class WheelKnowledge:
-    """What a ``scftc-v2`` controller knows about its reaction wheels (public constants).
+    """What a controller knows about its reaction wheels (public constants).
 
     Attributes:
         spin_axes: ``(m, 3)`` unit spin axes ``g_i``, body frame.
@@ -50,7 +52,7 @@ class WheelKnowledge:
 
 @dataclass(frozen=True)
 class SensorKnowledge:
-    """The noise figures of ``scftc-v2``'s sensors, per sample, in SI units (never their draws).
+    """The noise figures of redundant noisy sensors, per sample, in SI units (never their draws).
 
     Attributes:
         star_tracker_heads: number of heads.
@@ -72,20 +74,27 @@ class Context:
     """What a controller knows before the first step of a batch: its benchmark version's public
     constants (never the fault, unless it is privileged).
 
+    The hardware fields say what kind of actuators and sensors the version flies; each is ``None``
+    where the version has no such thing. A version whose controllers need a new kind of public
+    constant adds a field here: this is the interface every controller and submission reads.
+
     Attributes:
         n: episodes in the batch.
-        benchmark_version: e.g. ``scftc-v1``.
+        benchmark_version: the version's name.
         dt_s: control step (the command is held over it).
-        inertia_nominal_kgm2: ``(3,)`` diagonal of the *nominal* hub inertia.
-        tau_max_nm: ``scftc-v1``: torque per body axis at command 1.
-        wheels: ``scftc-v2``: the reaction wheels' constants.
-        sensors: ``scftc-v2``: the sensors' noise figures.
+        obs_dim, action_dim: widths of the observation and of the command.
+        inertia_nominal_kgm2: diagonal of the *nominal* hub inertia.
+        tau_max_nm: body-torque actuators: torque per body axis at command 1.
+        wheels: reaction-wheel actuators: their constants.
+        sensors: noisy sensors: their noise figures.
         fault: the true fault (a version's fault record), handed only to privileged controllers.
     """
 
     n: int
     benchmark_version: str
     dt_s: float
+    obs_dim: int
+    action_dim: int
     inertia_nominal_kgm2: np.ndarray
     tau_max_nm: float | None = None
     wheels: WheelKnowledge | None = None
@@ -98,14 +107,27 @@ class Context:
 
     @classmethod
     def from_public(cls, doc: dict[str, Any]) -> Context:
-        """Rebuild a fault-free context from ``public()``'s document (arrays as float64)."""
-        known = {f.name for f in fields(cls)} - {"fault"}
-        kwargs: dict[str, Any] = {k: _array(v) for k, v in doc.items() if k in known}
-        if isinstance(kwargs.get("wheels"), dict):
-            kwargs["wheels"] = WheelKnowledge(**{k: _array(v) for k, v in kwargs["wheels"].items()})
-        if isinstance(kwargs.get("sensors"), dict):
-            kwargs["sensors"] = SensorKnowledge(**kwargs["sensors"])
-        return cls(**kwargs)
+        """Rebuild a fault-free context from ``public()``'s document (lists as float64 arrays, the
+        hardware records from their fields' types)."""
+        return _rebuild(cls, {k: v for k, v in doc.items() if k != "fault"})
+
+
+def _rebuild(cls: type, doc: dict[str, Any]) -> Any:
+    """An instance of dataclass ``cls`` from ``doc``: a field whose type names a dataclass is
+    rebuilt from its dict the same way; a list becomes a float64 array."""
+    hints = typing.get_type_hints(cls)
+    known = {f.name for f in fields(cls)}
+    kwargs: dict[str, Any] = {}
+    for name, value in doc.items():
+        if name not in known:
+            continue
+        record = next(
+            (t for t in typing.get_args(hints[name]) if isinstance(t, type) and is_dataclass(t)), None
+        )
+        kwargs[name] = (
+            _rebuild(record, value) if record is not None and isinstance(value, dict) else _array(value)
+        )
+    return cls(**kwargs)
 
 
 def _plain(value: Any) -> Any:

@@ -7,6 +7,7 @@ per-episode logs; ``RunProvenance`` says what code, libraries and artifacts prod
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -19,6 +20,8 @@ from pydantic import (
     model_serializer,
     model_validator,
 )
+
+from scftc_cli.spec import GATES
 
 BY_FAULT_FIELDS = ("by_fault", "interval_by_fault", "design_effect")
 
@@ -178,13 +181,20 @@ class EpisodeOutcomes:
 LIBRARIES = ("numpy", "numba", "scipy", "pydantic", "torch", "bsk", "gymnasium")
 
 
+PACKAGED = "scftc_cli/"
+"""What a packaged artifact's key is recorded under (``scftc_cli/params/pid.yaml``): the package
+name, then the key its version resolves (``versions.Version.artifact_path``)."""
+
+
 def collect_provenance(
-    artifacts: list[Path] | tuple[Path, ...] = (), controller_file: Path | None = None
+    artifacts: Mapping[str, Path] | Sequence[Path] = (), controller_file: Path | None = None
 ) -> RunProvenance:
     """The provenance of a result produced now, from this installation.
 
-    Reads installed versions from package metadata (nothing is imported) and asks git for the
-    checkout's commit when the package runs from one.
+    ``artifacts``: a built-in's packaged files by key (``ControllerSpec.artifact_files``), recorded
+    as ``PACKAGED + key``; or files given on the command line, recorded by their path (relative to
+    the checkout where they sit inside it). Reads installed versions from package metadata
+    (nothing is imported) and asks git for the checkout's commit when the package runs from one.
     """
     import hashlib
     import platform
@@ -226,9 +236,14 @@ def collect_provenance(
         git_dirty=dirty,
         python=platform.python_version(),
         libraries={name: v for name in LIBRARIES if (v := installed(name)) is not None},
-        artifacts={
-            str(Path(p).relative_to(root) if Path(p).is_relative_to(root) else p): sha(p) for p in artifacts
-        },
+        artifacts=(
+            {PACKAGED + key: sha(path) for key, path in artifacts.items()}
+            if isinstance(artifacts, Mapping)
+            else {
+                str(Path(p).relative_to(root) if Path(p).is_relative_to(root) else p): sha(p)
+                for p in artifacts
+            }
+        ),
         controller_file_sha256=sha(controller_file) if controller_file is not None else None,
     )
 
@@ -251,9 +266,7 @@ def episode_rows(controller: str, benchmark: str, draw: str, runs: list) -> list
                     "sensor": run.cell.sensor,
                     "episode": i,
                     **episodes.describe(i),
-                    "settled": bool(o.settled[i]),
-                    "operational": bool(o.operational[i]),
-                    "touch_once": bool(o.touch_once[i]),
+                    **{gate: bool(getattr(o, gate)[i]) for gate in GATES},
                     "final_error_deg": float(o.final_error_deg[i]),
                     "settling_time_s": None if settling != settling else settling,
                 }

@@ -23,33 +23,15 @@ from scftc_cli.spec import GATES, GateSpec
 from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts, profile_counts
 
 
-def settled(error_deg: np.ndarray, threshold_deg: float, dwell_steps: int) -> np.ndarray:
-    """``(n,)`` bool: the error stays within ``threshold_deg`` for all of the final ``dwell_steps``."""
-    return np.all(error_deg[:, -dwell_steps:] <= threshold_deg, axis=1)
-
-
-def touch_once(error_deg: np.ndarray, threshold_deg: float) -> np.ndarray:
-    """``(n,)`` bool: the error touched ``threshold_deg`` at least once (reported to show why a
-    transient minimum misleads)."""
-    return np.min(error_deg, axis=1) <= threshold_deg
-
-
 def trajectory_gates(error_deg: np.ndarray, gates: GateSpec) -> dict[str, np.ndarray]:
-    """``(n,)`` bool outcome of each gate from a full ``(n, steps)`` error history."""
-    return {
-        "settled": settled(error_deg, gates.settled_deg, gates.dwell_steps),
-        "operational": settled(error_deg, gates.operational_deg, gates.dwell_steps),
-        "touch_once": touch_once(error_deg, gates.touch_deg),
-    }
+    """``(n,)`` bool outcome of each gate from a full ``(n, steps)`` error history (``GateSpec.passed``
+    on its final-window maximum and its minimum)."""
+    return gates.passed(np.max(error_deg[:, -gates.dwell_steps :], axis=1), np.min(error_deg, axis=1))
 
 
 def gate_outcomes(rollout: Rollout, gates: GateSpec) -> dict[str, np.ndarray]:
     """``(n,)`` bool outcome of each gate from the statistics accumulated during a rollout."""
-    return {
-        "settled": rollout.dwell_max_error_deg <= gates.settled_deg,
-        "operational": rollout.dwell_max_error_deg <= gates.operational_deg,
-        "touch_once": rollout.min_error_deg <= gates.touch_deg,
-    }
+    return gates.passed(rollout.dwell_max_error_deg, rollout.min_error_deg)
 
 
 def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:

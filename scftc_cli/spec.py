@@ -1,10 +1,11 @@
-"""Benchmark definitions as data: one frozen ``BenchmarkSpec`` per benchmark version.
+"""What a benchmark version is, as data: the schema of every version's frozen ``BenchmarkSpec``.
 
-Every number that defines a benchmark version lives in its spec object and nowhere else, so a
-change to any of them is visible in one diff and travels with every result as the version string.
-The layers below take a spec (or its version string) instead of module-level constants: scoring
-reads ``spec.gates``, evaluation reads the taxonomy and cell sizes, the simulator reads the plant.
-The written definition is ``docs/benchmark.md``; a test checks that every number here appears there.
+Every number that defines a benchmark version lives in its spec object (``versions/<name>/spec.py``)
+and nowhere else, so a change to any of them is visible in one diff and travels with every result
+as the version string. The layers below take a spec instead of module-level constants: scoring
+reads ``spec.gates``, evaluation reads the taxonomy (``classes``, ``sensor_classes``, ``splits``)
+and cell sizes, the simulator reads the plant. Each version's written definition lives in ``docs/``;
+a test checks that every value of its spec appears there.
 """
 
 from __future__ import annotations
@@ -13,13 +14,15 @@ from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
-from scftc_cli.errors import UnknownNameError
+from scftc_cli import versions
+from scftc_cli.errors import UnknownNameError, UsageError
 
 if TYPE_CHECKING:
     import numpy as np
 
 Split = Literal["train", "test"]
-DEFAULT_BENCHMARK = "scftc-v1"
+DEFAULT_BENCHMARK: str = versions.default_version()
+"""The version every command flies unless told otherwise: the first registered (``versions.VERSIONS``)."""
 
 
 class _Frozen(BaseModel):
@@ -111,137 +114,110 @@ class ObservationField(_Frozen):
     unit: str
 
 
-class RigidBodyPlant(_Frozen):
-    """``scftc-v1``'s testbed: a rigid body with three body-axis torques (docs/benchmark.md)."""
+class PlantSpec(_Frozen):
+    """What every version's plant declares (its own model adds its physical constants)."""
 
-    kind: Literal["rigid-body-torques"] = "rigid-body-torques"
-    inertia_nominal_kgm2: tuple[float, float, float] = (10.0, 8.0, 6.0)
-    dt_s: float = 0.5
-    steps: int = 400
-    tau_max_nm: float = 0.2
-    sigma0_half_width: float = 0.5
-    omega0_half_width_rad_s: float = 0.02
+    dt_s: float
+    steps: int
 
 
-_R3 = 0.5773502691896258  # 1 / sqrt(3), the float64 nearest to it
+class SensorSpec(_Frozen):
+    """A version's sensor noise figures, a controller may know them (its own model adds them)."""
 
 
-class ReactionWheelPlant(_Frozen):
-    """``scftc-v2``'s testbed: a rigid hub with four balanced reaction wheels (docs/benchmark-v2.md).
+class SplitSpec(_Frozen):
+    """The parameter ranges of one split of a version's fault taxonomy (its own model adds them).
 
-    Attributes:
-        spin_axes: one unit spin axis per wheel, body frame (tetrahedral: any three independent).
-        h_max_nms, omega_max_rpm: wheel momentum at the speed limit; ``Js = h_max / Omega_max``,
-            transverse ``Jt = Js / 2``.
-        u_max_nm: motor torque cap per wheel.
-        coulomb_nm, viscous_nms, omega_linear_rad_s: nominal bearing friction ``fC0``, ``cV`` and
-            the half width ``wLC`` of the zone where friction is linear in speed.
-        wheel_speed0_half_width_rpm: initial wheel speeds are uniform in +- this, per wheel.
+    A split whose model has an ``onset_s`` range starts its faults mid-flight (``BenchmarkSpec.has_onset``).
     """
 
-    kind: Literal["reaction-wheels"] = "reaction-wheels"
-    inertia_nominal_kgm2: tuple[float, float, float] = (10.0, 8.0, 6.0)
-    spin_axes: tuple[tuple[float, float, float], ...] = (
-        (_R3, _R3, _R3),
-        (_R3, -_R3, -_R3),
-        (-_R3, _R3, -_R3),
-        (-_R3, -_R3, _R3),
-    )
-    h_max_nms: float = 2.0
-    omega_max_rpm: float = 6000.0
-    u_max_nm: float = 0.1
-    coulomb_nm: float = 5e-4
-    viscous_nms: float = 0.0
-    omega_linear_rad_s: float = 3.0
-    dt_s: float = 0.5
-    steps: int = 400
-    sigma0_half_width: float = 0.5
-    omega0_half_width_rad_s: float = 0.02
-    wheel_speed0_half_width_rpm: float = 1000.0
 
-    @property
-    def n_wheels(self) -> int:
-        return len(self.spin_axes)
-
-
-class SensorSuite(_Frozen):
-    """``scftc-v2``'s sensors: noise figures a controller may know (never their draws).
+class FaultClass(_Frozen):
+    """An actuator fault class as data: which of a split's ranges its faults draw, beyond the
+    inertia scale and the reversed actuators that every class draws (in the sampler's order).
 
     Attributes:
-        star_tracker_heads: number of heads, each reporting the attitude with its own noise.
-        star_tracker_noise_arcsec: white rotation noise per axis per sample, 1 sigma.
-        gyro_arw_deg_sqrt_h: gyro angle random walk; per-sample sigma ``ARW / sqrt(dt)``.
-        gyro_bias_deg_h: the constant gyro bias of an episode is uniform in +- this per axis.
-        tachometer_noise_rad_s: white wheel-speed noise per sample, 1 sigma.
+        name: the class's name on the command line and in tables.
+        magnitude: effectiveness magnitudes drawn from ``gain_magnitude`` (false: sign only, 1).
+        bias: per-actuator offsets drawn from ``bias``.
+        friction: one actuator's friction multiplied by a draw of ``friction_multiplier``.
+        dead: one actuator dead (effectiveness 0).
     """
 
-    star_tracker_heads: int = 3
-    star_tracker_noise_arcsec: float = 10.0
-    gyro_arw_deg_sqrt_h: float = 0.15
-    gyro_bias_deg_h: float = 0.5
-    tachometer_noise_rad_s: float = 0.01
+    name: str
+    magnitude: bool = True
+    bias: bool = False
+    friction: bool = False
+    dead: bool = False
+
+
+class SensorFaultClass(_Frozen):
+    """A sensor fault class as data; its faults sit on ``sensor_base_class`` faults.
+
+    Attributes:
+        name: the fault's name on the command line and in tables.
+        kind: what the version's sensors do (each version's sensor model reads the kinds it defines).
+        angle_deg: the size of a constant attitude offset, for the kinds that have one.
+    """
+
+    name: str
+    kind: str
+    angle_deg: float | None = None
+
+
+GATES: tuple[str, ...] = ("settled", "operational", "touch_once")
+"""The gates every cell is scored on, in table order: the field names of every record of them."""
 
 
 class GateSpec(_Frozen):
-    """Thresholds of the three gates on the true pointing error."""
+    """The gates on the true pointing error: the one place that says what each one compares.
+
+    ``settled`` and ``operational`` compare the largest error over the final ``dwell_steps`` with
+    their threshold; ``touch_once`` compares the smallest error over the whole episode with its own.
+    """
 
     settled_deg: float = 0.2
     operational_deg: float = 5.0
     touch_deg: float = 0.2
     dwell_steps: int = 20
 
+    def thresholds_deg(self) -> dict[str, float]:
+        """Each gate of ``GATES`` and its threshold in deg."""
+        return {
+            "settled": self.settled_deg,
+            "operational": self.operational_deg,
+            "touch_once": self.touch_deg,
+        }
 
-class RigidBodySplit(_Frozen):
-    """Parameter ranges of one split of ``scftc-v1``'s actuator-fault taxonomy."""
-
-    inertia_scale: IntervalSet
-    gain_magnitude: IntervalSet
-    reversed_axes: tuple[int, ...]
-    bias: IntervalSet
-
-
-class WheelSplit(_Frozen):
-    """Parameter ranges of one split of ``scftc-v2``'s fault taxonomy (actuator faults per wheel).
-
-    Attributes:
-        onset_s: the fault (actuator or sensor) starts at the first step ``k`` with ``k dt >= t_f``.
-        reversed_wheels: the number of reversed wheels is drawn uniformly from these.
-        gain_magnitude, bias: per-wheel effectiveness magnitude and offset (a fraction of ``u_max``).
-        friction_multiplier: one wheel's Coulomb friction becomes this times ``fC0`` (``friction``).
-        head_bias_deg: rotation offset of one star-tracker head (``st_bias``).
-        gyro_bias_step_deg_s: size per axis of the gyro-bias step (``gyro_bias``), random signs.
-    """
-
-    inertia_scale: IntervalSet
-    onset_s: IntervalSet
-    reversed_wheels: tuple[int, ...]
-    gain_magnitude: IntervalSet
-    bias: IntervalSet
-    friction_multiplier: IntervalSet
-    head_bias_deg: IntervalSet
-    gyro_bias_step_deg_s: IntervalSet
+    def passed(self, dwell_max_error_deg: np.ndarray, min_error_deg: np.ndarray) -> dict[str, np.ndarray]:
+        """``(n,)`` bool outcome of each gate of ``GATES`` from each episode's largest error over the
+        final dwell window and smallest error over the episode (deg, ``(n,)`` each)."""
+        thresholds = self.thresholds_deg()
+        return {
+            "settled": dwell_max_error_deg <= thresholds["settled"],
+            "operational": dwell_max_error_deg <= thresholds["operational"],
+            "touch_once": min_error_deg <= thresholds["touch_once"],
+        }
 
 
-GATES: tuple[str, ...] = ("settled", "operational", "touch_once")
+PlantT = TypeVar("PlantT", bound=PlantSpec)
+SplitT = TypeVar("SplitT", bound=SplitSpec)
+SensorsT = TypeVar("SensorsT", bound=SensorSpec)
 
 
-PlantT = TypeVar("PlantT", RigidBodyPlant, ReactionWheelPlant)
-SplitT = TypeVar("SplitT", RigidBodySplit, WheelSplit)
-
-
-class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT]):
-    """Everything that defines one benchmark version (generic in its plant and split types, so
-    ``V1.plant`` is a ``RigidBodyPlant`` to the type checker and ``V2.plant`` a ``ReactionWheelPlant``).
+class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
+    """Everything that defines one benchmark version, as data (generic in its plant, split and
+    sensor models, so that each version's code sees its own types).
 
     Attributes:
-        version: the string every result carries, e.g. ``scftc-v1``.
-        plant: the testbed's physical constants (its ``kind`` selects the simulator).
+        version: the string every result carries.
+        plant: the testbed's physical constants.
         sensors: the sensors' noise figures (``None``: perfect sensors).
         observation: the blocks of the observation vector, in order.
         action_dim: length of the command vector (each entry in [-1, 1]).
         splits: the fault taxonomy's parameter ranges per split.
-        fault_classes: actuator classes, in table order.
-        sensor_faults: sensor classes, evaluated on top of ``sensor_base_class`` faults.
+        classes: the actuator fault classes, in table order.
+        sensor_classes: the sensor fault classes, evaluated on top of ``sensor_base_class`` faults.
         ranked_classes: the classes whose mean settled rate ranks deployable entries.
         n_faults, n_seeds: a full cell is ``n_faults x n_seeds`` episodes.
     """
@@ -249,18 +225,54 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT]):
     version: str
     title: str
     plant: PlantT
-    sensors: SensorSuite | None = None
+    sensors: SensorsT | None = None
     observation: tuple[ObservationField, ...]
     action_dim: int
     gates: GateSpec = GateSpec()
     splits: dict[str, SplitT]
-    fault_classes: tuple[str, ...]
-    sensor_faults: tuple[str, ...]
+    classes: tuple[FaultClass, ...]
+    sensor_classes: tuple[SensorFaultClass, ...]
     sensor_base_class: str = "sign"
     ranked_classes: tuple[str, ...]
     n_faults: int = 50
     n_seeds: int = 10
     confidence: float = 0.95
+
+    @property
+    def fault_classes(self) -> tuple[str, ...]:
+        """The actuator classes' names, in table order."""
+        return tuple(c.name for c in self.classes)
+
+    @property
+    def sensor_faults(self) -> tuple[str, ...]:
+        """The sensor faults' names, in table order."""
+        return tuple(c.name for c in self.sensor_classes)
+
+    def fault_class(self, name: str) -> FaultClass:
+        """The actuator class ``name``."""
+        return self.classes[self.fault_classes.index(name)]
+
+    def sensor_class(self, name: str) -> SensorFaultClass:
+        """The sensor fault ``name``."""
+        return self.sensor_classes[self.sensor_faults.index(name)]
+
+    def check_cell(self, split: str, fault_class: str, sensor: str | None = None) -> None:
+        """Raise ``UnknownNameError`` naming the valid choices if the cell does not exist, and a
+        ``UsageError`` for a sensor fault on another class than ``sensor_base_class``."""
+        if split not in self.splits:
+            raise UnknownNameError("split", split, self.splits)
+        if fault_class not in self.fault_classes:
+            raise UnknownNameError("fault class", fault_class, self.fault_classes)
+        if sensor is not None:
+            if sensor not in self.sensor_faults:
+                raise UnknownNameError("sensor fault", sensor, self.sensor_faults)
+            if fault_class != self.sensor_base_class:
+                raise UsageError(f"sensor faults are defined on top of `{self.sensor_base_class}` faults")
+
+    @property
+    def has_onset(self) -> bool:
+        """Whether faults start mid-flight: the taxonomy's splits draw an onset time."""
+        return "onset_s" in type(self.splits["test"]).model_fields
 
     @property
     def obs_dim(self) -> int:
@@ -279,78 +291,16 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT]):
         return self.plant.dt_s
 
 
-V1 = BenchmarkSpec[RigidBodyPlant, RigidBodySplit](
-    version="scftc-v1",
-    title="the source study's testbed: torques on the body, perfect sensors",
-    plant=RigidBodyPlant(),
-    observation=(
-        ObservationField(name="sigma_meas", width=3, unit="MRP"),
-        ObservationField(name="omega_meas", width=3, unit="rad/s"),
-    ),
-    action_dim=3,
-    splits={
-        "train": RigidBodySplit(
-            inertia_scale=closed(0.8, 2.0),
-            gain_magnitude=closed(0.5, 1.5),
-            reversed_axes=(0, 1),
-            bias=closed(-0.2, 0.2),
-        ),
-        "test": RigidBodySplit(
-            inertia_scale=outside(0.7, 0.8, 2.0, 2.3),
-            gain_magnitude=outside(0.3, 0.5, 1.5, 2.0),
-            reversed_axes=(2, 3),
-            bias=outside(-0.3, -0.2, 0.2, 0.3),
-        ),
-    },
-    fault_classes=("sign", "gain", "gain_bias", "loss"),
-    sensor_faults=("bias_0.1", "bias_0.2", "bias_0.3", "bias_0.5", "dropout", "stuck"),
-    ranked_classes=("sign", "gain", "gain_bias"),
-)
-
-V2 = BenchmarkSpec[ReactionWheelPlant, WheelSplit](
-    version="scftc-v2",
-    title="the flight-like track: four reaction wheels, noisy redundant sensors, mid-flight faults",
-    plant=ReactionWheelPlant(),
-    sensors=SensorSuite(),
-    observation=(
-        ObservationField(name="star_tracker_heads", width=9, unit="MRP (three heads, zeros if invalid)"),
-        ObservationField(name="star_tracker_valid", width=3, unit="1 valid, 0 invalid"),
-        ObservationField(name="gyro", width=3, unit="rad/s"),
-        ObservationField(name="tachometers", width=4, unit="rad/s"),
-    ),
-    action_dim=4,
-    splits={
-        "train": WheelSplit(
-            inertia_scale=closed(0.8, 2.0),
-            onset_s=closed(0.0, 30.0),
-            reversed_wheels=(0, 1),
-            gain_magnitude=closed(0.5, 1.5),
-            bias=closed(-0.2, 0.2),
-            friction_multiplier=closed(1.0, 20.0),
-            head_bias_deg=closed(0.05, 0.3),
-            gyro_bias_step_deg_s=closed(0.0, 0.015),
-        ),
-        "test": WheelSplit(
-            inertia_scale=outside(0.7, 0.8, 2.0, 2.3),
-            onset_s=IntervalSet(parts=(Interval(lo=30.0, hi=60.0, lo_closed=False),)),
-            reversed_wheels=(2, 3),
-            gain_magnitude=outside(0.3, 0.5, 1.5, 2.0),
-            bias=outside(-0.3, -0.2, 0.2, 0.3),
-            friction_multiplier=IntervalSet(parts=(Interval(lo=20.0, hi=60.0, lo_closed=False),)),
-            head_bias_deg=IntervalSet(parts=(Interval(lo=0.3, hi=1.0, lo_closed=False),)),
-            gyro_bias_step_deg_s=IntervalSet(parts=(Interval(lo=0.015, hi=0.03, lo_closed=False),)),
-        ),
-    },
-    fault_classes=("sign", "gain", "gain_bias", "friction", "loss"),
-    sensor_faults=("st_bias", "st_stuck", "st_outage", "gyro_bias"),
-    ranked_classes=("sign", "gain", "gain_bias", "friction", "loss"),
-)
-
-SPECS: dict[str, BenchmarkSpec[Any, Any]] = {V1.version: V1, V2.version: V2}
+def get_spec(version: str | None = None) -> BenchmarkSpec[Any, Any, Any]:
+    """The spec of registered version ``version`` (the default's when ``None``); an unknown version
+    suggests the closest one."""
+    return versions.get_spec(version)
 
 
-def get_spec(version: str = DEFAULT_BENCHMARK) -> BenchmarkSpec:
-    """The spec of ``version``; an unknown version suggests the closest one."""
-    if version not in SPECS:
-        raise UnknownNameError("benchmark version", version, SPECS)
-    return SPECS[version]
+def __getattr__(name: str) -> Any:
+    """A registered version's spec by the short name its folder gives it (``versions.spec_alias``):
+    kept so that code written against the specs' old home still reads them."""
+    spec = None if name.startswith("_") else versions.spec_by_alias(name)
+    if spec is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return spec

@@ -1,6 +1,7 @@
 """The written definition keeps up with the code, and the repository stands alone.
 
-* Every value of ``scftc_cli.spec.V1`` appears in ``docs/benchmark.md``: the spec object is walked
+* Every value of every registered version's spec appears in its definition (``Version.definition``;
+  ``docs/benchmark.md`` for ``scftc-v1``): the spec object is walked
   generically (a new field is covered the day it is added) and each leaf must have a row in the
   document's table "The spec as data", keyed by its dotted path, whose value cell shows the value
   the way the document writes numbers (``0.2``, ``2.3``, ``400``; ``2`` or ``2.0``; an interval with
@@ -24,15 +25,19 @@ import numpy as np
 import pytest
 from pydantic import BaseModel
 
-from scftc_cli.spec import V1, V2, BenchmarkSpec, Interval, IntervalSet
+from scftc_cli.spec import BenchmarkSpec, Interval, IntervalSet
+from scftc_cli.versions import all_versions
+from scftc_cli.versions.v1.sim.testbed import TESTBED as V1_TESTBED
+from scftc_cli.versions.v1.spec import V1
+from scftc_cli.versions.v2.sim.testbed import TESTBED as V2_TESTBED
+from scftc_cli.versions.v2.spec import V2
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARK_MD = ROOT / "docs" / "benchmark.md"
 BENCHMARK_V2_MD = ROOT / "docs" / "benchmark-v2.md"
 TABLE_HEADING = "## 12. The spec as data"
-DEFINITIONS = {  # each version's spec, its written definition and the heading of its spec table
-    "scftc-v1": (V1, BENCHMARK_MD, TABLE_HEADING),
-    "scftc-v2": (V2, BENCHMARK_V2_MD, "## 11. The spec as data"),
+DEFINITIONS = {  # each registered version's spec, its written definition and the heading of its spec table
+    v.name: (v.spec, ROOT / v.definition[0], v.definition[1]) for v in all_versions()
 }
 FORBIDDEN = ("../shared", "shared/SPEC", "CONTROLLERS.md", "SPEC.md", "SPEC section", "SPEC-v2")
 BINARY_SUFFIXES = {".png", ".svg", ".pt", ".pyc", ".pdf", ".npz", ".npy", ".gz", ".zip"}
@@ -128,7 +133,7 @@ def test_every_value_of_the_spec_is_in_the_benchmark_definition(version: str) ->
         for forms in expected_texts(path, value):
             if not any(contains_number(rows[path], f) for f in forms):
                 problems.append(f"row `{path}` does not show {sorted(forms)[0]!r}")
-            if not isinstance(value, str) and not any(contains_number(prose, f) for f in forms):
+            if not isinstance(value, str | bool | None) and not any(contains_number(prose, f) for f in forms):
                 problems.append(f"the prose never writes {sorted(forms)[0]!r} (`{path}`)")
     for fault in spec.sensor_faults:
         if fault.startswith("bias_"):
@@ -138,7 +143,7 @@ def test_every_value_of_the_spec_is_in_the_benchmark_definition(version: str) ->
     assert not problems, "\n".join(problems)
 
 
-@pytest.mark.parametrize("spec", [V1, V2], ids=lambda s: s.version)
+@pytest.mark.parametrize("spec", [d[0] for d in DEFINITIONS.values()], ids=lambda s: s.version)
 def test_the_walk_reaches_every_field(spec: BenchmarkSpec) -> None:
     paths = {p for p, _ in leaves(spec)}
     for name in type(spec).model_fields:
@@ -155,13 +160,11 @@ def _reference_code(doc: str) -> str:
 
 
 def test_the_reference_draw_in_the_definition_gives_the_simulators_episodes() -> None:
-    from scftc_cli.sim.v1.faults import draw_episodes
-
     ns: dict[str, Any] = {}
     exec(compile(_reference_code(BENCHMARK_MD.read_text()), "docs/benchmark.md", "exec"), ns)
     n_faults, n_seeds = 6, 3
     for salt, split, cls in product((b"", bytes(range(32))), ("train", "test"), V1.fault_classes):
-        e = draw_episodes(split, cls, None, n_faults, n_seeds, salt)
+        e = V1_TESTBED.draw(split, cls, None, n_faults, n_seeds, salt)
         for i, j in product(range(n_faults), range(n_seeds)):
             k = i * n_seeds + j
             g, b, f = ns["fault"](split, cls, i, salt)
@@ -170,12 +173,13 @@ def test_the_reference_draw_in_the_definition_gives_the_simulators_episodes() ->
             assert f == e.fault.inertia_scale[k]
             assert np.array_equal(sigma0, e.sigma0[k]) and np.array_equal(omega0, e.omega0_rad_s[k])
     for split, fault in product(("train", "test"), V1.sensor_faults):
-        if not fault.startswith("bias_"):
+        angle_deg = V1.sensor_class(fault).angle_deg
+        if angle_deg is None:
             continue
-        e = draw_episodes(split, V1.sensor_base_class, fault, n_faults, n_seeds)
+        e = V1_TESTBED.draw(split, V1.sensor_base_class, fault, n_faults, n_seeds)
         assert e.sensor_bias_mrp is not None
         for i, j in product(range(n_faults), range(n_seeds)):
-            mrp = ns["attitude_bias_mrp"](split, i, j, float(fault.removeprefix("bias_")))
+            mrp = ns["attitude_bias_mrp"](split, i, j, angle_deg)
             assert np.array_equal(mrp, e.sensor_bias_mrp[i * n_seeds + j])
 
 
@@ -202,14 +206,12 @@ def test_nothing_points_outside_the_repository(needle: str) -> None:
 
 
 def test_the_reference_draw_of_v2_gives_the_simulators_episodes() -> None:
-    from scftc_cli.sim.v2.faults import draw_episodes
-
     ns: dict[str, Any] = {}
     exec(compile(_reference_code(BENCHMARK_V2_MD.read_text()), "docs/benchmark-v2.md", "exec"), ns)
     n_faults, n_seeds = 5, 2
     for salt, split in product((b"", bytes(range(32))), ("train", "test")):
         for cls in V2.fault_classes:
-            e = draw_episodes(split, cls, None, n_faults, n_seeds, salt)
+            e = V2_TESTBED.draw(split, cls, None, n_faults, n_seeds, salt)
             for i, j in product(range(n_faults), range(n_seeds)):
                 k = i * n_seeds + j
                 g, b, m, f, onset = ns["fault"](split, cls, i, salt)
@@ -223,7 +225,7 @@ def test_the_reference_draw_of_v2_gives_the_simulators_episodes() -> None:
                 mine = np.random.Generator(np.random.PCG64(np.random.SeedSequence(e.noise_seed[k].tolist())))
                 assert np.array_equal(stream.random(8), mine.random(8))
         for sensor in V2.sensor_faults:
-            e = draw_episodes(split, V2.sensor_base_class, sensor, n_faults, n_seeds, salt)
+            e = V2_TESTBED.draw(split, V2.sensor_base_class, sensor, n_faults, n_seeds, salt)
             for i, j in product(range(n_faults), range(n_seeds)):
                 k = i * n_seeds + j
                 head, bias, step = ns["sensor_fault"](split, sensor, i, j, salt)

@@ -11,15 +11,14 @@ from scftc_cli.registry import make_controller
 from scftc_cli.scoring import (
     episode_outcomes,
     gate_stat,
-    settled,
-    touch_once,
     trajectory_gates,
     wilson_interval,
 )
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v1 import TESTBED
-from scftc_cli.spec import V1
+from scftc_cli.spec import GateSpec
 from scftc_cli.statistics import design_effect, interval_by_fault
+from scftc_cli.versions.v1.sim.testbed import TESTBED
+from scftc_cli.versions.v1.spec import V1
 
 STEPS = 400
 GATES = V1.gates
@@ -40,17 +39,18 @@ def test_gates_on_synthetic_trajectories():
     np.testing.assert_array_equal(gates["settled"], [True, False, False, False])
     np.testing.assert_array_equal(gates["touch_once"], [True, True, True, False])
     np.testing.assert_array_equal(gates["operational"], [True, True, True, True])
-    assert not settled(np.full((1, STEPS), 0.2 + 1e-12), 0.2, 20)[0]
-    assert settled(np.full((1, STEPS), 0.2), 0.2, 20)[0]
-    assert touch_once(np.full((1, STEPS), 0.2), 0.2)[0]
+    at = GateSpec(settled_deg=0.2, touch_deg=0.2, dwell_steps=20)
+    assert not trajectory_gates(np.full((1, STEPS), 0.2 + 1e-12), at)["settled"][0]
+    assert trajectory_gates(np.full((1, STEPS), 0.2), at)["settled"][0]
+    assert trajectory_gates(np.full((1, STEPS), 0.2), at)["touch_once"][0]
 
 
 def test_dwell_window_is_the_final_20_steps():
     err = np.full((1, STEPS), 0.1)
     err[0, STEPS - 21] = 50.0  # just before the window
-    assert settled(err, GATES.settled_deg, GATES.dwell_steps)[0]
+    assert trajectory_gates(err, GATES)["settled"][0]
     err[0, STEPS - 20] = 50.0
-    assert not settled(err, GATES.settled_deg, GATES.dwell_steps)[0]
+    assert not trajectory_gates(err, GATES)["settled"][0]
 
 
 @pytest.mark.parametrize(

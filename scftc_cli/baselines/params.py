@@ -1,6 +1,9 @@
-"""Tuned parameters on disk: ``scftc_cli/params/<controller>.yaml``, with provenance.
+"""Tuned parameters and trained weights on disk, with provenance.
 
-A params file is small, versioned and committed; ``scftc eval`` reads it and never tunes.
+A version's committed artifacts live in its folder: ``versions/<name>/params/<controller>.yaml``
+(small, versioned; ``scftc eval`` reads it and never tunes) and ``versions/<name>/weights/`` (a
+learned controller's ``.npz`` with a ``.yaml`` sidecar). ``committed_params`` and
+``committed_weights`` find them for any version, and name the command that regenerates a missing one.
 """
 
 from __future__ import annotations
@@ -9,21 +12,18 @@ import datetime as dt
 import inspect
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import yaml
 from pydantic import BaseModel, Field
 
 from scftc_cli import __version__
 from scftc_cli.errors import ScftcError, UsageError
+from scftc_cli.versions import benchmark_option, get_version
 
 if TYPE_CHECKING:
     from scftc_cli.protocol import Controller
     from scftc_cli.registry import ControllerSpec
-
-PACKAGE_DIR = Path(__file__).resolve().parent.parent
-PARAMS_DIR = PACKAGE_DIR / "params"
-WEIGHTS_DIR = PACKAGE_DIR / "weights"
 
 
 class Provenance(BaseModel):
@@ -38,7 +38,7 @@ class Provenance(BaseModel):
         ge=1,
         description="Training seeds run before this artifact was committed (1: no selection).",
     )
-    benchmark_version: str = "scftc-v1"
+    benchmark_version: str = Field(description="The version whose train split made it.")
     package_version: str = __version__
     created_utc: str = ""
     notes: str = ""
@@ -50,15 +50,38 @@ class ParamsFile(BaseModel):
     provenance: Provenance
 
 
-def params_path(controller: str) -> Path:
-    return PARAMS_DIR / f"{controller}.yaml"
+def train_command(controller: str, benchmark: str) -> str:
+    """The command that regenerates ``controller``'s committed artifact of ``benchmark``."""
+    return f"scftc train {benchmark_option(benchmark)}--controller {controller} --in-place"
 
 
-def save_params(
-    controller: str, params: dict[str, Any], provenance: Provenance, path: Path | None = None
-) -> Path:
+def committed_params(controller: str, benchmark: str) -> dict[str, Any]:
+    """The ``params`` mapping of ``controller``'s committed params file of version ``benchmark``."""
+    path = get_version(benchmark).params_dir / f"{controller}.yaml"
+    return load_params(controller, path, benchmark).params
+
+
+def committed_weights(controller: str, benchmark: str) -> Path:
+    """The committed weights file of learned ``controller`` of version ``benchmark`` (it exists)."""
+    path = get_version(benchmark).weights_dir / f"{controller}.npz"
+    if not path.exists():
+        raise ScftcError(f"no weights at {path}; run `{train_command(controller, benchmark)}`")
+    return path
+
+
+class Tuned:
+    """Mixin of a controller with tuned parameters (a frozen dataclass ``params_type``): built with
+    ``params``, or with the committed ones of ``tuned_as = (controller name, version)``."""
+
+    params_type: ClassVar[type]
+    tuned_as: ClassVar[tuple[str, str]]
+
+    def __init__(self, params: Any = None) -> None:
+        self.params = params if params is not None else self.params_type(**committed_params(*self.tuned_as))
+
+
+def save_params(controller: str, params: dict[str, Any], provenance: Provenance, path: Path) -> Path:
     """Write a params file (creating folders); returns its path."""
-    path = path or params_path(controller)
     path.parent.mkdir(parents=True, exist_ok=True)
     if not provenance.created_utc:
         stamp = dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat()
@@ -68,25 +91,16 @@ def save_params(
     return path
 
 
-def v2_params_path(controller: str) -> Path:
-    """The committed tuned parameters of ``scftc-v2`` controller ``controller``."""
-    return PARAMS_DIR / "v2" / f"{controller}.yaml"
-
-
-def load_v2_params(controller: str) -> dict[str, Any]:
-    """The ``params`` mapping of ``controller``'s committed ``scftc-v2`` params file."""
-    path = v2_params_path(controller)
+def load_params(controller: str, path: Path, benchmark: str | None = None) -> ParamsFile:
+    """Read and validate a params file; a missing one names the command that makes it (for the
+    committed file of ``benchmark``)."""
     if not path.exists():
-        command = f"scftc train --benchmark scftc-v2 --controller {controller} --in-place"
-        raise ScftcError(f"no tuned parameters at {path}; run `{command}`")
-    return load_params(controller, path).params
-
-
-def load_params(controller: str, path: Path | None = None) -> ParamsFile:
-    """Read and validate a params file; a missing one names the command that makes it."""
-    path = path or params_path(controller)
-    if not path.exists():
-        raise ScftcError(f"no tuned parameters at {path}; run `scftc train --controller {controller}`")
+        how = (
+            f"run `{train_command(controller, benchmark)}`"
+            if benchmark
+            else "pass the file `scftc train --out` wrote"
+        )
+        raise ScftcError(f"no tuned parameters at {path}; {how}")
     return ParamsFile.model_validate(yaml.safe_load(path.read_text()))
 
 

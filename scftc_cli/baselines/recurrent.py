@@ -283,8 +283,8 @@ def student_step(
     log_mag_min,
     log_mag_max,
 ):
-    """One step of ``ThetaStudent`` (``training/rma.py``) for the rows of ``x`` ``(B, F)`` where
-    ``active`` ``(B,)`` is set; the other rows (latched axes) are left as they are.
+    """One step of the RMA student (``training/student.py``'s ``StudentModule``) for the rows of
+    ``x`` ``(B, F)`` where ``active`` ``(B,)`` is set; the other rows (latched axes) are left as they are.
 
     Updates the GRU state ``h`` ``(B, H)`` and the running sums ``sums`` ``(B, 2)`` (``sum w x y``,
     ``sum w x^2``) in place and writes ``theta_hat`` into ``theta`` ``(B,)``, with the torch module's
@@ -343,7 +343,7 @@ def student_step(
 
 @numba.njit(cache=True, error_model="numpy")
 def policy_step(x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_out):
-    """One step of the e2e actor (``RecurrentPolicy``, ``training/ppo.py``) for every row of the
+    """One step of the e2e actor (``RecurrentPolicy``, ``training/policy.py``) for every row of the
     scaled input ``x`` ``(B, 9)``: LSTM (gates ``(W_hh h + b_hh) + (W_ih x + b_ih)``, split into
     input, forget, cell and output gates; ``c' = f c + i g``, ``h' = o tanh(c')``), a tanh layer per
     entry of the tuples ``w_mlp``, ``b_mlp``, then the linear action head. Updates ``h`` and ``c``

@@ -14,12 +14,13 @@ from scftc_cli.commands.listing import list_command
 from scftc_cli.commands.reproduce import reproduce_command
 from scftc_cli.commands.submit import submit_command
 from scftc_cli.commands.train import train_command
-from scftc_cli.spec import SPECS
+from scftc_cli.versions import version_names
 
 app = typer.Typer(
     name="scftc",
     help=f"SCFTC {__version__}: the honest benchmark for spacecraft attitude fault-tolerant control. "
-    f"Scores controllers on a settled gate over held-out faults. Benchmark versions: {', '.join(SPECS)}.",
+    "Scores controllers on a settled gate over held-out faults. "
+    f"Benchmark versions: {', '.join(version_names())}.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,

@@ -22,7 +22,8 @@ from rich.console import Console
 from rich.markup import escape
 
 from scftc_cli.errors import ScftcError, UsageError
-from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS
+from scftc_cli.spec import DEFAULT_BENCHMARK
+from scftc_cli.versions import version_names
 
 if TYPE_CHECKING:
     from scftc_cli.protocol import Progress
@@ -37,7 +38,7 @@ BenchmarkOption = Annotated[
     str,
     typer.Option(
         "--benchmark",
-        help=f"Benchmark version: {' or '.join(SPECS)}.",
+        help=f"Benchmark version: {' or '.join(version_names())}.",
         show_default=True,
     ),
 ]
@@ -45,8 +46,8 @@ FileBenchmarkOption = Annotated[
     str | None,
     typer.Option(
         "--benchmark",
-        help=f"Benchmark version: {' or '.join(SPECS)} [default: the one a submission file declares "
-        f"(SUBMISSION['benchmark']), else {DEFAULT_BENCHMARK}].",
+        help=f"Benchmark version: {' or '.join(version_names())} [default: the one a submission file "
+        f"declares (SUBMISSION['benchmark']), else {DEFAULT_BENCHMARK}].",
         show_default=False,
     ),
 ]

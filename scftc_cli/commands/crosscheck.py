@@ -26,7 +26,8 @@ def crosscheck_command(
     """Fly the same episodes through the default backend and Basilisk and compare every state.
 
     Prints one JSON document; exits 1 if any state differs by more than 1e-9 (sigma, omega in
-    rad/s; on scftc-v2 also the wheel speeds, as a fraction of their speed limit) or any gate
+    rad/s, and any state of the version's own, such as wheel speeds as a fraction of their speed limit)
+    or any gate
     outcome differs.
     """
     from scftc_cli.errors import ScftcError

@@ -40,7 +40,8 @@ class BoardFormat(StrEnum):
 
 
 SubBenchmarkOption = Annotated[
-    str | None, typer.Option("--benchmark", help="Benchmark version [default: scftc-v1].", show_default=False)
+    str | None,
+    typer.Option("--benchmark", help=f"Benchmark version [default: {DEFAULT}].", show_default=False),
 ]
 
 leaderboard_app = typer.Typer(
@@ -111,12 +112,16 @@ def show_command(
     fmt = BoardFormat(output_format).value
     if fmt == "html":
         from scftc_cli.board.html import board_html
-        from scftc_cli.spec import SPECS
+        from scftc_cli.versions import version_names
 
         if leaderboard is not None or _explicit(ctx, "benchmark"):
             boards = [read_board(leaderboard or default_board_path(benchmark), benchmark)]
         else:
-            boards = [read_board(default_board_path(v), v) for v in SPECS if default_board_path(v).exists()]
+            boards = [
+                read_board(default_board_path(v), v)
+                for v in version_names()
+                if default_board_path(v).exists()
+            ]
         text = board_html(boards)
     else:
         path = leaderboard or default_board_path(benchmark)
@@ -365,7 +370,8 @@ def land_command(
     from scftc_cli.board.rounds import read_key
     from scftc_cli.board.store import default_board_path, read_board
     from scftc_cli.errors import LeaderboardError
-    from scftc_cli.spec import SPECS, get_spec
+    from scftc_cli.spec import get_spec
+    from scftc_cli.versions import version_names
 
     key = read_key(key_file) if seal else None
     files = sorted(folder.rglob("*.py"))
@@ -380,7 +386,7 @@ def land_command(
         f"{len(report.rejected)} rejected)"
     )
     if key is not None:
-        for version in SPECS:
+        for version in version_names():
             path = default_board_path(version, writing=True)
             if not path.exists() or not any(e.status == "pending" for e in read_board(path, version).entries):
                 continue

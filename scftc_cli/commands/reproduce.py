@@ -52,9 +52,9 @@ def reproduce_command(
     scheduler: SchedulerOption = None,
 ) -> None:
     """Run the whole battery, the sensor table and the example trajectories; write battery.md/json,
-    sensor.md/json and the figures (PNG + SVG) into OUT; on scftc-v2 also fdir_detection.md (the
-    fault detector's delay and false alarms on the held-out cells). No training: uses the committed
-    artifacts."""
+    sensor.md/json and the figures (PNG + SVG) into OUT; on a version whose study measures a fault
+    detector also fdir_detection.md (its delay and false alarms on the held-out cells). No training:
+    uses the committed artifacts."""
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.records import episode_rows, write_episode_log
     from scftc_cli.spec import get_spec

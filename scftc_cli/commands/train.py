@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from scftc_cli.commands.common import (
+    DEFAULT,
     BenchmarkOption,
     SchedulerOption,
     WorkersOption,
@@ -19,7 +20,6 @@ from scftc_cli.commands.common import (
     progress_bar,
     stderr,
 )
-from scftc_cli.spec import DEFAULT_BENCHMARK
 
 
 class BudgetOption(StrEnum):
@@ -30,7 +30,7 @@ class BudgetOption(StrEnum):
 @exits_cleanly
 def train_command(
     controller: Annotated[str, typer.Option(help="Controller to tune/train (train split only).")],
-    benchmark: BenchmarkOption = DEFAULT_BENCHMARK,
+    benchmark: BenchmarkOption = DEFAULT,
     seed: Annotated[int, typer.Option(help="Seed of the run; same seed, same artifact.")] = 0,
     budget: Annotated[
         BudgetOption, typer.Option(help="quick (< 2 min smoke test) or full (published artifact).")
@@ -57,6 +57,7 @@ def train_command(
     from scftc_cli.errors import UsageError
     from scftc_cli.registry import controller_spec
     from scftc_cli.training import TrainRequest, cluster_trainers, get_trainer
+    from scftc_cli.versions import benchmark_option
 
     entry = controller_spec(controller, benchmark)  # an unknown name or version fails here
     trainer = get_trainer(controller, benchmark)
@@ -70,7 +71,7 @@ def train_command(
         raise UsageError("give --out or --in-place, not both")
     if not in_place and out is None:
         folder = Path("results") / "train"
-        folder = folder if benchmark == DEFAULT_BENCHMARK else folder / benchmark
+        folder = folder if benchmark == DEFAULT else folder / benchmark
         out = folder / Path(entry.artifacts[0]).name
     with (
         cluster(workers, scheduler) as runner,
@@ -93,9 +94,8 @@ def train_command(
         highlight=False,
     )
     if not in_place:
-        version_option = "" if benchmark == DEFAULT_BENCHMARK else f" --benchmark {benchmark}"
         stderr.print(
-            f"evaluate it with `scftc eval{version_option} --controller {controller} "
+            f"evaluate it with `scftc eval {benchmark_option(benchmark)}--controller {controller} "
             f"--params {report.artifact} --split train`",
             highlight=False,
             soft_wrap=True,

@@ -1,42 +1,45 @@
-"""Gymnasium environments of the benchmark, registered by id.
+"""Gymnasium environments of the benchmark, registered by id: each version declares its own
+(``Version.envs``, e.g. ``scftc/AttitudeFTC-v1``: the suffix is the benchmark version).
 
-``import scftc_cli`` is enough for ``gymnasium.make("scftc/AttitudeFTC-v1")`` (and
-``"scftc/AttitudeFTC-v2"``: the suffix is the benchmark version) and
-``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``: the package registers these
-ids as soon as gymnasium is imported (before or after it), and never imports gymnasium itself, so
-``scftc --help`` stays fast. The entry points are strings: the environment modules load on ``make``.
+``import scftc_cli`` is enough for ``gymnasium.make(id)`` and ``gymnasium.make_vec(...,
+vectorization_mode="vector_entry_point")``, whichever of the two is imported first: the package
+root installs a hook that calls ``register`` once gymnasium is imported, and never imports
+gymnasium itself, so ``scftc --help`` stays fast. After ``import gymnasium`` alone,
+``gymnasium.make("scftc_cli:<id>")`` imports the package and so registers them (gymnasium's own
+``module:id`` form). The entry points are strings: the environment modules load on ``make``.
 Needs ``gymnasium`` (``pip install scftc[rl]``). Observation, action, reward and episodes:
 ``docs/rl.md``.
 """
 
 from __future__ import annotations
 
-ENVS: dict[str, tuple[str, str]] = {
-    "scftc/AttitudeFTC-v1": (
-        "scftc_cli.envs.attitude:AttitudeFTCEnv",
-        "scftc_cli.envs.attitude:AttitudeFTCVectorEnv",
-    ),
-    "scftc/AttitudeFTC-v2": (
-        "scftc_cli.envs.wheels:AttitudeFTCv2Env",
-        "scftc_cli.envs.wheels:AttitudeFTCv2VectorEnv",
-    ),
-}
+import re
+
+from scftc_cli.versions import GymEnv, all_versions
 
 
-V1_OUT_OF_DATE = r".*The environment scftc/AttitudeFTC-v1 is out of date"
-"""Gymnasium's warning on ``make("scftc/AttitudeFTC-v1")`` once ``-v2`` exists: it reads ``-v2`` as
-v1's successor, but the two are separate benchmark tracks, so the warning would mislead."""
+def environments() -> list[GymEnv]:
+    """Every registered version's environments."""
+    return [env for version in all_versions() for env in version.envs]
+
+
+def out_of_date_warning(env_id: str) -> str:
+    """The regex of gymnasium's warning on ``make(env_id)`` when an id with a higher version suffix
+    exists: it reads another benchmark version's environment as the newer edition of this one, but
+    versions are separate tracks, so the warning would mislead."""
+    return rf".*The environment {re.escape(env_id)} is out of date"
 
 
 def register() -> None:
-    """Register every environment of ``ENVS`` with gymnasium (idempotent), and silence the one
-    misleading "out of date" warning about ``scftc/AttitudeFTC-v1``."""
+    """Register every version's environments with gymnasium (idempotent), and silence the
+    misleading "out of date" warning about each of them."""
     import warnings
 
     import gymnasium
 
-    warnings.filterwarnings("ignore", message=V1_OUT_OF_DATE, category=DeprecationWarning)
-
-    for env_id, (entry_point, vector_entry_point) in ENVS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
+    for env in environments():
+        warnings.filterwarnings("ignore", message=out_of_date_warning(env.id), category=DeprecationWarning)
+        if env.id not in gymnasium.registry:
+            gymnasium.register(
+                id=env.id, entry_point=env.entry_point, vector_entry_point=env.vector_entry_point
+            )

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 from dataclasses import dataclass
 from typing import Any, Self
 
@@ -32,6 +33,12 @@ def seed_sequence(
 def generator(version: str, *key: str, index: tuple[int, ...], salt: bytes = b"") -> np.random.Generator:
     """``np.random.default_rng`` of ``seed_sequence(...)``."""
     return np.random.default_rng(seed_sequence(version, *key, index=index, salt=salt))
+
+
+def unit_norm(v: np.ndarray) -> float:
+    """``|v|`` of a 3-vector summed left to right: the same bits on every CPU (``np.linalg.norm``
+    goes through BLAS, whose kernels differ in the last bit between CPUs, and a draw must not)."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 def _take(value: Any, idx: np.ndarray | slice, n: int) -> Any:

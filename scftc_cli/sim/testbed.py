@@ -3,23 +3,25 @@
 A ``Testbed`` turns a version's spec into episodes (its pinned or sealed draws), a plant for each
 backend (the true state, advanced one control step at a time), the sensors (what a controller
 sees) and the context a controller is handed. The closed loop (``sim/rollout.py``), scoring, the
-board and the command line only talk to this interface, so a new version is a new spec plus a new
-testbed: nothing above ``sim/`` changes.
+board and the command line only talk to this interface: each version's folder implements it
+(``versions/<name>/sim/``) and names it in its ``Version`` record, where ``testbed`` finds it.
 """
 
 from __future__ import annotations
 
-import importlib
 from abc import ABC, abstractmethod
-from typing import ClassVar
+from collections.abc import Mapping
+from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from scftc_cli.errors import UnknownNameError
+from scftc_cli.errors import UnknownNameError, UsageError
+from scftc_cli.loading import load
 from scftc_cli.protocol import Context
 from scftc_cli.sim import BACKENDS
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.spec import SPECS, BenchmarkSpec
+from scftc_cli.spec import BenchmarkSpec
+from scftc_cli.versions import get_version
 
 
 class Plant(ABC):
@@ -30,6 +32,11 @@ class Plant(ABC):
     """
 
     name: ClassVar[str]
+
+    @classmethod
+    @abstractmethod
+    def of(cls, episodes: Any) -> Self:
+        """A plant holding ``episodes``' initial states and faults (its version's episodes)."""
 
     @abstractmethod
     def step(self, k: int, command: np.ndarray) -> np.ndarray:
@@ -52,11 +59,17 @@ class Sensors(ABC):
 
 
 class Testbed(ABC):
-    """One benchmark version's simulator."""
+    """One benchmark version's simulator.
+
+    Attributes:
+        spec: the version's spec.
+        plants: backend -> ``"module:Class"`` of its ``Plant`` there, imported only when that
+            backend flies (Basilisk is an optional extra); a backend it lacks is refused.
+    """
 
     spec: BenchmarkSpec
+    plants: ClassVar[Mapping[str, str]]
 
-    @abstractmethod
     def draw(
         self,
         split: str,
@@ -72,10 +85,41 @@ class Testbed(ABC):
         version's seeds, or keyed by ``salt`` for a sealed draw; with ``start``/``stop`` only that
         slice of them (equal to the slice of the whole draw). The first faults and seeds of a cell
         do not depend on ``n_faults`` or ``n_seeds``."""
+        n_faults = self.spec.n_faults if n_faults is None else n_faults
+        n_seeds = self.spec.n_seeds if n_seeds is None else n_seeds
+        if n_faults < 1 or n_seeds < 1:
+            raise UsageError("--n-faults and --n-seeds must be at least 1")
+        self.spec.check_cell(split, fault_class, sensor)
+        n = n_faults * n_seeds
+        stop = n if stop is None else stop
+        if not 0 <= start < stop <= n:
+            raise UsageError(f"episodes {start}..{stop} are not inside a cell of {n}")
+        return self.pinned(split, fault_class, sensor, n_faults, n_seeds, salt, start, stop)
 
     @abstractmethod
+    def pinned(
+        self,
+        split: str,
+        fault_class: str,
+        sensor: str | None,
+        n_faults: int,
+        n_seeds: int,
+        salt: bytes,
+        start: int,
+        stop: int,
+    ) -> Episodes:
+        """``draw`` once its arguments are checked and complete: episodes ``start..stop-1`` of the
+        cell's ``n_faults x n_seeds``, fault-major, every random number from the version's keyed
+        streams (``sim/episodes.py``)."""
+
     def plant(self, episodes: Episodes, backend: str = "numpy") -> Plant:
         """A plant holding ``episodes``' initial states and faults, on ``backend``."""
+        check_backend(backend)
+        if backend not in self.plants:
+            raise UsageError(
+                f"{self.spec.version} has no {backend} backend (it has {', '.join(self.plants)})"
+            )
+        return load(self.plants[backend]).of(episodes)
 
     @abstractmethod
     def sensors(self, episodes: Episodes) -> Sensors:
@@ -86,15 +130,9 @@ class Testbed(ABC):
         """What a controller may know; the true fault only if ``privileged``."""
 
 
-_TESTBEDS = {"scftc-v1": "scftc_cli.sim.v1:TESTBED", "scftc-v2": "scftc_cli.sim.v2:TESTBED"}
-
-
 def testbed(version: str) -> Testbed:
     """The simulator of benchmark ``version`` (imported on first use)."""
-    if version not in _TESTBEDS or version not in SPECS:
-        raise UnknownNameError("benchmark version", version, SPECS)
-    module, _, attr = _TESTBEDS[version].partition(":")
-    return getattr(importlib.import_module(module), attr)
+    return load(get_version(version).testbed)
 
 
 def check_backend(backend: str) -> None:

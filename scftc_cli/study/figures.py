@@ -68,7 +68,7 @@ def battery_bars(
     spec: BenchmarkSpec, results: list[EvalResult], colors: dict[str, tuple] | None = None
 ) -> Figure:
     """Grouped bars: settled rate per held-out class (groups) and controller (bars), Wilson 95 %;
-    sensor classes too where the battery flew them (``scftc-v2``)."""
+    sensor classes too where the battery flew them (a version whose sensors are in its battery)."""
     classes = list(spec.fault_classes)
     if any(c.sensor for r in results for c in r.cells):
         classes += list(spec.sensor_faults)
@@ -108,10 +108,14 @@ def battery_bars(
     return fig
 
 
+BIAS_CLASS = "gain_bias"
+"""The class whose cells the bias-wall figure shows (drawn where a version has it)."""
+
+
 def bias_wall(results: list[EvalResult], colors: dict[str, tuple] | None = None) -> Figure:
     """The additive-bias wall: every controller's gain_bias cell, settled vs operational."""
     rows = [
-        (r, next(c for c in r.cells if c.fault_class == "gain_bias" and c.sensor is None)) for r in results
+        (r, next(c for c in r.cells if c.fault_class == BIAS_CLASS and c.sensor is None)) for r in results
     ]
     colors = colors or _colors([r.controller for r in results])
     fig, ax = plt.subplots(figsize=(12, 0.55 * len(rows) + 2.0))
@@ -364,7 +368,9 @@ def sensor_faults(
             median.set(color="black")
     gate = spec.gates.settled_deg
     bottom.axhline(gate, color="red", linestyle="--", linewidth=1.2, label=f"{gate:g} deg settled gate")
-    biased = [(xi, sensor_bias_deg(s)) for xi, s in zip(x, sensors, strict=True) if sensor_bias_deg(s)]
+    biased = [
+        (xi, sensor_bias_deg(spec, s)) for xi, s in zip(x, sensors, strict=True) if sensor_bias_deg(spec, s)
+    ]
     bottom.plot(
         [b[0] for b in biased],
         [b[1] for b in biased],
@@ -375,7 +381,7 @@ def sensor_faults(
         label="sensor bias (where an unobservable offset parks the truth)",
     )
     for xi, s in zip(x, sensors, strict=True):
-        if sensor_bias_deg(s) == gate:
+        if sensor_bias_deg(spec, s) == gate:
             bottom.annotate(
                 "on the gate:\nrounding decides",
                 (xi, gate),
@@ -755,15 +761,15 @@ def write_figures(study: Study, out_dir: Path) -> list[Path]:
     battery = study.battery.results
     colors = _colors([r.controller for r in battery])  # one colour per controller in every figure
     sensor = study.sensor
-    figures = {
-        "battery_settled": battery_bars(study.spec, battery, colors),
-        "bias_wall": bias_wall(battery, colors),
-        "settled_vs_touch": settled_vs_touch(study.spec, battery, colors),
-        "trajectories": trajectories(study.spec, study.trajectories, colors),
-        "sensor_faults": sensor_faults(
+    figures = {"battery_settled": battery_bars(study.spec, battery, colors)}
+    if BIAS_CLASS in study.spec.fault_classes:
+        figures["bias_wall"] = bias_wall(battery, colors)
+    figures["settled_vs_touch"] = settled_vs_touch(study.spec, battery, colors)
+    figures["trajectories"] = trajectories(study.spec, study.trajectories, colors)
+    if study.spec.sensor_faults:
+        figures["sensor_faults"] = sensor_faults(
             study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
-        ),
-    }
+        )
     privileged = {r.controller: r.privileged for r in battery}
     outcomes, columns = cell_outcomes(study), outcome_columns(study, flown_by_all=True)
     figures["final_error_profile"] = final_error_profile(study.spec, outcomes, columns, privileged, colors)

@@ -28,38 +28,25 @@ from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
+from scftc_cli.versions import StudyPlan, get_version
 
 if TYPE_CHECKING:
     from scftc_cli.distributed.runner import Runner
 
 Regime = Literal["controllable", "shield-only"]
-DEPLOYED_PREFERENCE = "rma_dob"  # the deployed controller of the source study
-DETECTOR = "fdir"  # the controller whose wheel detector the study measures (versions with onsets)
-ORACLE_FOR_SENSORS = "teacher"
 BACKEND = "numpy"
-REGIME_RULE = (
-    "controllable: the star tracker reports the true attitude offset by a constant rotation strictly "
-    "smaller than the settled gate, so driving the measured attitude to zero also settles the true one; "
-    "shield-only: the offset is at or above the gate (a constant bias is unobservable from "
-    "[sigma_meas, w], so the truth parks at the bias: at exactly the gate, rounding decides) or the "
-    "attitude is not measured at all (dropout, stuck) - only an independent reference or a safety "
-    "shield can help."
-)
 
 
-REGIME_RULE_REDUNDANT = (
-    "controllable: three star-tracker heads outvote one bad head, the gyro carries the attitude "
-    "through an outage, and a gyro-bias step is observable through the heads: every sensor class "
-    "can in principle be fought from the observation."
-)
+def study_plan(spec: BenchmarkSpec) -> StudyPlan:
+    """What the study measures on ``spec``'s version beyond the battery."""
+    return get_version(spec.version).study
 
 
 def sensors_in_battery(spec: BenchmarkSpec) -> bool:
-    """Whether every controller flies the sensor classes as part of the battery: on a version with
-    noisy redundant sensors (``scftc-v2``) they are part of what a controller is judged on. On
-    ``scftc-v1`` the sensor table flies the deployed controller and the teacher, as the source
-    study's table did."""
-    return spec.sensors is not None
+    """Whether every controller flies the sensor classes as part of the battery (a version with
+    noisy redundant sensors, where they are part of what a controller is judged on); otherwise the
+    sensor table flies the deployed controller and an oracle, as the source study's table did."""
+    return study_plan(spec).sensors_in_battery
 
 
 class StudyError(ScftcError, RuntimeError):
@@ -89,7 +76,7 @@ class SensorReport(BaseModel):
     deployed: str | None
     deployed_reason: str
     gate_deg: float
-    regime_rule: str = REGIME_RULE
+    regime_rule: str
     regimes: dict[str, Regime]
     results: list[EvalResult]
 
@@ -121,8 +108,8 @@ class Trajectory:
 
 @dataclass(frozen=True)
 class Detection:
-    """``fdir``'s wheel detector on the held-out episodes of one actuator class: what
-    ``baselines.v2.fdir.detection_stats`` returns for the very episodes the battery flew.
+    """A detector on the held-out episodes of one actuator class: what
+    ``study.detection.detection_stats`` returns for the very episodes the battery flew.
 
     The test of step ``k`` looks at the step ``k - 1`` just flown, so a delay of 1 step is the
     earliest possible.
@@ -191,7 +178,7 @@ class Study:
     sensor: SensorReport
     trajectories: list[Trajectory]
     runs: dict[str, list[CellRun]]  # per controller, its battery and sensor cells (episode outcomes)
-    detection: tuple[Detection, ...] = ()  # fdir's detector per held-out actuator class, if measured
+    detection: tuple[Detection, ...] = ()  # the detector per held-out actuator class, if measured
 
 
 def actuator_outcomes(
@@ -212,8 +199,8 @@ def actuator_outcomes(
 
 def cell_outcomes(study: Study) -> dict[str, dict[str, EpisodeOutcomes]]:
     """controller -> column -> its per-episode outcomes, controllers in battery order; a column is
-    an actuator class, or a sensor fault for a sensor cell (on ``scftc-v1`` only the controllers of
-    the sensor table fly those)."""
+    an actuator class, or a sensor fault for a sensor cell (where the sensor table is apart from the
+    battery, only its controllers fly those)."""
     return {
         r.controller: {
             run.cell.sensor or run.cell.fault_class: run.outcomes for run in study.runs[r.controller]
@@ -231,35 +218,41 @@ def outcome_columns(study: Study, *, flown_by_all: bool = False) -> list[str]:
 
 
 def has_onset(spec: BenchmarkSpec) -> bool:
-    """Whether the version's faults start mid-flight (``scftc-v2``)."""
-    return hasattr(spec.splits["test"], "onset_s")
+    """Whether the version's faults start mid-flight."""
+    return spec.has_onset
 
 
 def measures_detection(spec: BenchmarkSpec, entries: dict[str, ControllerSpec]) -> bool:
-    """Whether the study measures ``fdir``'s wheel detector: faults start mid-flight (so there is a
-    delay to measure and a healthy stretch to raise false alarms on) and ``fdir`` is registered."""
-    return has_onset(spec) and DETECTOR in entries
+    """Whether the study measures a detector: faults start mid-flight (so there is a delay to
+    measure and a healthy stretch to raise false alarms on) and the plan's detector is registered."""
+    detector = study_plan(spec).detector
+    return has_onset(spec) and detector is not None and detector in entries
 
 
-def sensor_bias_deg(sensor: str) -> float | None:
-    """The attitude-measurement offset of ``bias_*`` sensor faults in deg; ``None`` otherwise."""
-    return float(sensor.removeprefix("bias_")) if sensor.startswith("bias_") else None
+def sensor_bias_deg(spec: BenchmarkSpec, sensor: str) -> float | None:
+    """The attitude-measurement offset of a sensor fault in deg (``SensorFaultClass.angle_deg``);
+    ``None`` for a fault without one."""
+    return spec.sensor_class(sensor).angle_deg
 
 
-def sensor_regime(sensor: str, gate_deg: float) -> Regime:
-    """Whether ``sensor`` can in principle be fought from the observation (see ``REGIME_RULE``).
+def sensor_regime(spec: BenchmarkSpec, sensor: str, gate_deg: float) -> Regime:
+    """Whether ``sensor`` can in principle be fought from the observation (the plan's
+    ``regime_rule``): every sensor fault where the sensors are redundant; otherwise only a constant
+    offset strictly smaller than the gate.
 
-    ``bias_0.2`` sits exactly on the gate: the truth parks at 0.2 deg, so passing is rounding
-    luck, not control; it counts as shield-only.
+    An offset exactly on the gate parks the truth at the gate, so passing is rounding luck, not
+    control; it counts as shield-only.
     """
-    bias = sensor_bias_deg(sensor)
+    if sensors_in_battery(spec):
+        return "controllable"
+    bias = sensor_bias_deg(spec, sensor)
     return "controllable" if bias is not None and bias < gate_deg else "shield-only"
 
 
-def sensor_controller_count(entries: dict[str, ControllerSpec]) -> int:
+def sensor_controller_count(spec: BenchmarkSpec, entries: dict[str, ControllerSpec]) -> int:
     """How many controllers the sensor table will fly (known before the battery has run)."""
     deployable = any(not i.privileged for i in entries.values())
-    return int(deployable) + int(ORACLE_FOR_SENSORS in entries)
+    return int(deployable) + int(study_plan(spec).sensor_oracle in entries)
 
 
 def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
@@ -271,21 +264,21 @@ def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None
     detection = n_classes if measures_detection(spec, entries) else 0
     if sensors_in_battery(spec):
         return (len(entries) * (2 * n_classes + n_sensors) + detection) * spec.steps
-    rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(entries)
+    rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
     return (rollouts + detection) * spec.steps
 
 
-def choose_deployed(battery: list[EvalResult]) -> tuple[str | None, str]:
+def choose_deployed(battery: list[EvalResult], preference: str | None) -> tuple[str | None, str]:
     """The deployable controller the sensor table flies, and why.
 
-    ``rma_dob`` (the source study's deployed controller) when registered; otherwise the deployable
-    controller with the highest mean settled rate on ``sign`` and ``gain`` (ties: higher
-    ``gain_bias`` settled rate, then battery order).
+    ``preference`` (the study plan's: the source study's deployed controller) when registered;
+    otherwise the deployable controller with the highest mean settled rate on ``sign`` and
+    ``gain`` (ties: higher ``gain_bias`` settled rate, then battery order).
     """
     deployable = [r for r in battery if not r.privileged]
     for r in deployable:
-        if r.controller == DEPLOYED_PREFERENCE:
-            return r.controller, f"`{DEPLOYED_PREFERENCE}`, the deployed controller of the source study"
+        if r.controller == preference:
+            return r.controller, f"`{preference}`, the deployed controller of the source study"
     if not deployable:
         return None, "no deployable controller is registered"
 
@@ -295,7 +288,7 @@ def choose_deployed(battery: list[EvalResult]) -> tuple[str | None, str]:
 
     best = max(deployable, key=score)  # max keeps the first of equals: battery order breaks ties
     return best.controller, (
-        f"`{DEPLOYED_PREFERENCE}` is not registered; `{best.controller}` has the highest mean settled "
+        f"`{preference}` is not registered; `{best.controller}` has the highest mean settled "
         f"rate on held-out sign and gain ({100 * score(best)[0]:.1f} %) among deployable controllers"
     )
 
@@ -332,7 +325,7 @@ def _fly(
 def _result(entry: ControllerSpec, spec: BenchmarkSpec, runs: list[CellRun]) -> EvalResult:
     """What ``scftc eval --format json`` prints for the same controller and cells."""
     result = eval_result(entry.name, entry.privileged, spec, runs, BACKEND)
-    return result.model_copy(update={"provenance": collect_provenance(entry.artifact_paths())})
+    return result.model_copy(update={"provenance": collect_provenance(entry.artifact_files())})
 
 
 def preflight(entries: list[ControllerSpec]) -> None:
@@ -385,19 +378,18 @@ def example_trajectories(
 def fdir_detection(
     entry: ControllerSpec, spec: BenchmarkSpec, runs: list[CellRun], progress: Progress = NO_PROGRESS
 ) -> tuple[Detection, ...]:
-    """``fdir`` (``entry``) flown again through the episodes of its held-out actuator cells in
-    ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn again after a cluster run),
-    measured by ``detection_stats``. One ``Detection`` per actuator cell, in ``runs``' order."""
-    from scftc_cli.baselines.v2.fdir import FDIR, detection_stats
+    """The plan's detector (``entry``) flown again through the episodes of its held-out actuator
+    cells in ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn again after a cluster
+    run), measured by ``detection_stats``. One ``Detection`` per actuator cell, in ``runs``' order."""
+    from scftc_cli.study.detection import detection_stats
 
-    controller = entry.make()
-    if not isinstance(controller, FDIR):
-        raise StudyError(f"controller `{entry.name}` is not the fdir controller; cannot measure its detector")
     out = []
     for run in (r for r in runs if r.cell.sensor is None):
         progress.describe(f"detection: {entry.name} on {run.cell.fault_class}")
         try:
-            stats = detection_stats(run.drawn(), controller.params)
+            stats = detection_stats(entry.make(), run.drawn(), spec.gates)
+        except AttributeError as err:
+            raise StudyError(f"controller `{entry.name}` records no detector: {err}") from err
         except Exception as err:
             raise StudyError(f"controller `{entry.name}` failed on {run.cell.fault_class}: {err}") from err
         progress.advance(spec.steps)  # detection_stats flies one batch without a progress hook
@@ -425,7 +417,7 @@ def run_study(
     runner: Runner | None = None,
 ) -> Study:
     """Run the battery, the sensor table and the example trajectories of ``spec``'s version, and
-    ``fdir``'s detection measurements where ``measures_detection``.
+    its detector's measurements where ``measures_detection``.
 
     Args:
         n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
@@ -436,6 +428,7 @@ def run_study(
     n_faults = spec.n_faults if n_faults is None else n_faults
     n_seeds = spec.n_seeds if n_seeds is None else n_seeds
     entries = registry(spec.version)
+    plan = study_plan(spec)
     battery_order = list(entries.values())
     preflight(battery_order)
     actuator_cells = select_cells(spec, "test", None, None)
@@ -450,22 +443,19 @@ def run_study(
             None,
             "Every controller flies the sensor classes on this version (part of its battery)",
         )
-        regimes: dict[str, Regime] = {s: "controllable" for s in spec.sensor_faults}
-        rule = REGIME_RULE_REDUNDANT
     else:
         runs = {
             e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress, runner) for e in battery_order
         }
         battery = [_result(e, spec, runs[e.name]) for e in battery_order]
-        deployed, reason = choose_deployed(battery)
-        sensor_names = [n for n in (deployed, ORACLE_FOR_SENSORS) if n is not None and n in entries]
+        deployed, reason = choose_deployed(battery, plan.deployed_preference)
+        sensor_names = [n for n in (deployed, plan.sensor_oracle) if n is not None and n in entries]
         sensor_results = []
         for name in sensor_names:
             sensor_runs = _fly(entries[name], spec, sensor_cells, n_faults, n_seeds, progress, runner)
             runs[name] = runs[name] + sensor_runs
             sensor_results.append(_result(entries[name], spec, sensor_runs))
-        regimes = {s: sensor_regime(s, gate) for s in spec.sensor_faults}
-        rule = REGIME_RULE
+    regimes = {s: sensor_regime(spec, s, gate) for s in spec.sensor_faults}
     return Study(
         spec=spec,
         battery=BatteryReport(
@@ -478,15 +468,15 @@ def run_study(
             deployed=deployed,
             deployed_reason=reason,
             gate_deg=gate,
-            regime_rule=rule,
+            regime_rule=plan.regime_rule,
             regimes=regimes,
             results=sensor_results,
         ),
         trajectories=example_trajectories(battery_order, spec, progress),
         runs=runs,
         detection=(
-            fdir_detection(entries[DETECTOR], spec, runs[DETECTOR], progress)
-            if measures_detection(spec, entries)
+            fdir_detection(entries[plan.detector], spec, runs[plan.detector], progress)
+            if plan.detector is not None and measures_detection(spec, entries)
             else ()
         ),
     )

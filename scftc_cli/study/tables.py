@@ -1,6 +1,6 @@
 """The study's tables: ``battery.md/json`` and ``sensor.md/json`` from ``run_study``'s records,
 ``settled_by_hub.md`` (the settled rate on each part of the held-out hub-inertia range), and
-``fdir_detection.md`` where the study measured ``fdir``'s wheel detector (``scftc-v2``); then
+``fdir_detection.md`` where the study measured a version's fault detector; then
 more than a pass/fail count from the per-episode outcomes: ``gate_sensitivity.md`` (the settled
 rate had the gate been 0.1, 0.2, 0.5 or 1 deg), ``final_error_profile.md`` (the performance
 profile of the final pointing error), ``settling_time.md`` and ``distributions.json`` (the
@@ -19,7 +19,7 @@ from pydantic import BaseModel
 from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.render import deff_text, markdown_table, pct, pct_by_fault
 from scftc_cli.scoring import gate_stat
-from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
+from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.statistics import (
     PROFILE_TAUS_DEG,
     SENSITIVITY_GATES_DEG,
@@ -35,6 +35,7 @@ from scftc_cli.study.run import (
     has_onset,
     outcome_columns,
 )
+from scftc_cli.versions import benchmark_option
 
 
 def _label(result: EvalResult) -> str:
@@ -47,7 +48,7 @@ def _cells_by_class(result: EvalResult) -> dict[str, CellResult]:
 
 
 def _regenerate(version: str) -> str:
-    return "scftc reproduce" if version == DEFAULT_BENCHMARK else f"scftc reproduce --benchmark {version}"
+    return f"scftc reproduce {benchmark_option(version)}".rstrip()
 
 
 BY_FAULT_NOTE = (

@@ -22,9 +22,10 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS
+from scftc_cli.spec import DEFAULT_BENCHMARK
 from scftc_cli.submission.wire import control_characters, source_encoding_problem
 from scftc_cli.submission.wire import terminal_safe as terminal_safe  # the command line's import
+from scftc_cli.versions import version_names
 
 GUIDE = "docs/submitting.md"
 NAME_PATTERN = r"^[a-z][a-z0-9_-]{1,39}$"
@@ -107,8 +108,8 @@ class SubmissionManifest(BaseModel):
     @field_validator("benchmark")
     @classmethod
     def _known_benchmark(cls, version: str) -> str:
-        if version not in SPECS:
-            raise ValueError(f"unknown benchmark {version!r}; use one of {', '.join(SPECS)}")
+        if version not in version_names():
+            raise ValueError(f"unknown benchmark {version!r}; use one of {', '.join(version_names())}")
         return version
 
     @field_validator("privileged")

@@ -33,7 +33,6 @@ import numpy as np
 
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.protocol import Context, Controller
-from scftc_cli.spec import get_spec
 from scftc_cli.submission.cgroups import RunGroup
 from scftc_cli.submission.isolation import (
     bwrap_argv,
@@ -256,7 +255,7 @@ class Sandbox:
     def reset(self, context: Context, where: str) -> None:
         """Start ``context.n`` episodes in the child; it is sent the context's public part only."""
         self.phase = f"reset() for {where}"
-        self.action_dim = get_spec(context.benchmark_version).action_dim
+        self.action_dim = context.action_dim
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
         deadline = self._until(self.limits.step_timeout_s)
         self._new_step()

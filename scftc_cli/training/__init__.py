@@ -1,14 +1,14 @@
 """Training and tuning of deployable controllers, on the train split only.
 
-Every trainer is listed under the controller name it produces parameters for (``TRAINERS``) and
-returns a ``TrainReport``; ``scftc train`` looks it up here. Trainers write the artifacts that
-``scftc eval`` loads (``scftc_cli/params/<name>.yaml`` or ``scftc_cli/weights/<name>.*``), each carrying its
-provenance: the command, seed, budget and train-split score that made it.
+Each version lists its trainers under the controller name they produce parameters for
+(``Version.trainers``); each returns a ``TrainReport``, and ``scftc train`` looks it up here.
+Trainers write the artifacts that ``scftc eval`` loads (the version's ``params/<name>.yaml`` or
+``weights/<name>.*``), each carrying its provenance: the version, command, seed, budget and
+train-split score that made it.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,8 +17,11 @@ from typing import Any, Literal
 from scftc_cli.baselines.params import Provenance
 from scftc_cli.errors import UnknownNameError
 from scftc_cli.evaluate import Cell, evaluate_cells
+from scftc_cli.loading import load
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
-from scftc_cli.spec import DEFAULT_BENCHMARK, SPECS, V1, BenchmarkSpec
+from scftc_cli.registry import controller_spec
+from scftc_cli.spec import DEFAULT_BENCHMARK, BenchmarkSpec
+from scftc_cli.versions import TUNER, benchmark_option, get_spec, get_version
 
 Budget = Literal["quick", "full"]
 
@@ -50,7 +53,11 @@ class TrainRequest:
     @property
     def spec(self) -> BenchmarkSpec:
         """The spec of ``benchmark``."""
-        return SPECS[self.benchmark]
+        return get_spec(self.benchmark)
+
+    def artifact_out(self) -> Path:
+        """Where the artifact goes: ``out``, else the controller's committed artifact."""
+        return self.out or controller_spec(self.controller, self.benchmark).artifact_paths()[0]
 
     def on_progress(self, fraction: float, message: str) -> None:
         """The run is ``fraction`` (0..1) done; ``message`` says what it is doing."""
@@ -60,16 +67,16 @@ class TrainRequest:
 
     def provenance(self, train_settled_rate: float, notes: str) -> Provenance:
         """The provenance of this run's artifact (the command defaults to the canonical one)."""
-        version = "" if self.benchmark == DEFAULT_BENCHMARK else f"--benchmark {self.benchmark} "
         canonical = (
-            f"scftc train {version}--controller {self.controller} --seed {self.seed} --budget {self.budget}"
+            f"scftc train {benchmark_option(self.benchmark)}--controller {self.controller} "
+            f"--seed {self.seed} --budget {self.budget}"
         )
-        command = self.command or canonical
         return Provenance(
-            command=command,
+            command=self.command or canonical,
             seed=self.seed,
             budget=self.budget,
             train_settled_rate=train_settled_rate,
+            benchmark_version=self.benchmark,
             notes=notes,
         )
 
@@ -86,51 +93,21 @@ class TrainReport:
 
 Trainer = Callable[[TrainRequest], TrainReport]
 
-# Controller name -> "module:function", imported only when that trainer runs (torch, sb3-contrib
-# and scipy.optimize stay off every other command's path).
-TRAINERS: dict[str, dict[str, str]] = {
-    "scftc-v1": {
-        "pid": "scftc_cli.training.tuning:tune_pid",
-        "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
-        "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
-        "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
-        "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
-        "rls_plan": "scftc_cli.training.tuning:tune_rls_plan",
-        "rma_student": "scftc_cli.training.rma:train_student",
-        "rma_dob": "scftc_cli.training.rma:train_student",
-        "e2e_ppo": "scftc_cli.training.ppo:train_e2e_ppo",
-    },
-    "scftc-v2": {
-        "pid": "scftc_cli.training.tuning:tune_pid",
-        "classical_adaptive": "scftc_cli.training.tuning:tune_classical_adaptive",
-        "icl_adaptive": "scftc_cli.training.tuning:tune_icl_adaptive",
-        "nussbaum": "scftc_cli.training.tuning:tune_nussbaum",
-        "rls_dob": "scftc_cli.training.tuning:tune_rls_dob",
-        "rma_student": "scftc_cli.training.v2_rma:train_student",
-        "rma_dob": "scftc_cli.training.v2_rma:train_student",
-        "e2e_ppo": "scftc_cli.training.v2_ppo:train_e2e_ppo",
-        "fdir": "scftc_cli.training.v2_fdir:tune_fdir",
-    },
-}
-"""Per benchmark version, controller name -> trainer."""
-
 
 def cluster_trainers(benchmark: str = DEFAULT_BENCHMARK) -> tuple[str, ...]:
     """The trainers of ``benchmark`` that spread over a Dask cluster (differential evolution's
-    population): the classical tuners."""
-    return tuple(
-        name for name, target in TRAINERS[benchmark].items() if target.startswith("scftc_cli.training.tuning")
-    )
+    population): the controllers the generic tuner tunes."""
+    return tuple(name for name, target in get_version(benchmark).trainers.items() if target == TUNER)
 
 
 def get_trainer(name: str, benchmark: str = DEFAULT_BENCHMARK) -> Trainer:
-    """The trainer of controller ``name`` on ``benchmark``; an unknown name lists the trainable ones."""
-    if benchmark not in TRAINERS:
-        raise UnknownNameError("benchmark version", benchmark, TRAINERS)
-    if name not in TRAINERS[benchmark]:
-        raise UnknownNameError(f"trainable controller of {benchmark}", name, TRAINERS[benchmark])
-    module, _, attr = TRAINERS[benchmark][name].partition(":")
-    return getattr(importlib.import_module(module), attr)
+    """The trainer of controller ``name`` on ``benchmark`` (imported on first use: torch,
+    sb3-contrib and scipy.optimize stay off every other command's path); an unknown name lists the
+    trainable ones."""
+    trainers = get_version(benchmark).trainers
+    if name not in trainers:
+        raise UnknownNameError(f"trainable controller of {benchmark}", name, trainers)
+    return load(trainers[name])
 
 
 def train_settled_rates(
@@ -138,7 +115,7 @@ def train_settled_rates(
     classes: tuple[str, ...],
     n_faults: int,
     n_seeds: int,
-    spec: BenchmarkSpec = V1,
+    spec: BenchmarkSpec,
 ) -> dict[str, float]:
     """Settled rate of ``make()``'s controller on the first ``n_faults x n_seeds`` pinned episodes
     of each *train* cell of ``classes`` (a sensor class ``sign+st_bias`` names a sensor cell): the

@@ -18,20 +18,23 @@ import numpy as np
 import pytest
 
 from scftc_cli.baselines import recurrent
-from scftc_cli.baselines.params import WEIGHTS_DIR
-from scftc_cli.baselines.ppo import E2EPPO, PolicyConfig, PolicyNet, load_policy, policy_input
-from scftc_cli.baselines.rma import (
+from scftc_cli.baselines.policy import PolicyConfig, PolicyNet
+from scftc_cli.baselines.student import StudentNet
+from scftc_cli.errors import ScftcError
+from scftc_cli.protocol import Context
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.versions.v1 import VERSION
+from scftc_cli.versions.v1.controllers.ppo import E2EPPO, OBS_SCALE
+from scftc_cli.versions.v1.controllers.rma import (
+    LAYOUT,
     N_FEATURES,
     Latch,
     StudentConfig,
     StudentController,
-    StudentNet,
     load_student,
 )
-from scftc_cli.errors import ScftcError
-from scftc_cli.protocol import Context
-from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v1.faults import RigidEpisodes, draw_episodes
+from scftc_cli.versions.v1.sim.faults import RigidEpisodes
+from scftc_cli.versions.v1.sim.testbed import TESTBED
 
 # Agreement asked of numba vs torch (float64 both), relative over each whole sequence:
 # max_t |numba - torch| <= RTOL max_t |torch| per sequence (episode axis, or episode for the
@@ -53,7 +56,7 @@ CELLS = (
 
 
 def cell_batches(n_faults: int = 3, n_seeds: int = 2) -> list[RigidEpisodes]:
-    return [draw_episodes(split, c, sensor, n_faults, n_seeds) for split, c, sensor in CELLS]
+    return [TESTBED.draw(split, c, sensor, n_faults, n_seeds) for split, c, sensor in CELLS]
 
 
 def relative_error(got: np.ndarray, ref: np.ndarray, axis: int | tuple[int, ...]) -> float:
@@ -108,7 +111,7 @@ def test_kernels_contain_no_fused_multiply_add() -> None:
     net, _ = load_student("rma_dob")
     state = net.start(2)
     net.step(np.zeros((2, N_FEATURES)), state)
-    policy = load_policy()
+    policy = E2EPPO().net
     policy.step(np.zeros((2, 9)), policy.start(2))
     for kernel in (recurrent.student_step, recurrent.policy_step):
         fresh = numba.njit(error_model="numpy")(kernel.py_func)
@@ -144,6 +147,7 @@ def test_kernel_bits_are_pinned() -> None:
             "head.2.weight": golden_inputs((3, hidden), 0.9),
             "head.2.bias": golden_inputs((3,), 0.05),
         },
+        LAYOUT,
         bias_invariant=False,
     )
     x = 4.0 * golden_inputs((7, 60, N_FEATURES), 0.33)
@@ -197,11 +201,12 @@ class _RecordingStudent(StudentController):
 def torch_student(name: str) -> Any:
     """The committed student as the torch module it was trained as, in float64."""
     torch = pytest.importorskip("torch")  # the reference only: evaluation never imports it
-    from scftc_cli.training.rma import ThetaStudent
+    from scftc_cli.training.student import StudentModule
+    from scftc_cli.versions.v1.controllers.rma import LAYOUT
 
-    arrays, doc = recurrent.load_weights(WEIGHTS_DIR / f"{name}.npz")
+    arrays, doc = recurrent.load_weights(VERSION.weights_dir / f"{name}.npz")
     config = StudentConfig.from_dict(doc)
-    model = ThetaStudent(config.hidden, config.bias_invariant)
+    model = StudentModule(LAYOUT, config.hidden, config.bias_invariant)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     return model.double().eval()
 
@@ -245,17 +250,17 @@ def test_student_matches_torch_on_recorded_rollouts(name: str) -> None:
 
 def test_policy_matches_torch_on_recorded_rollouts() -> None:
     torch = pytest.importorskip("torch")
-    from scftc_cli.training.ppo import RecurrentPolicy
+    from scftc_cli.training.policy import RecurrentPolicy
 
-    arrays, doc = recurrent.load_weights(WEIGHTS_DIR / "e2e_ppo.npz")
-    model = RecurrentPolicy(PolicyConfig.from_dict(doc))
+    arrays, doc = recurrent.load_weights(VERSION.weights_dir / "e2e_ppo.npz")
+    model = RecurrentPolicy(PolicyConfig.from_dict(doc), len(OBS_SCALE), 3)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     model = model.double().eval()
-    net = load_policy()
+    net = E2EPPO().net
 
     class Recording(E2EPPO):
         def act(self, obs: np.ndarray) -> np.ndarray:
-            self.inputs.append(policy_input(obs, self.prev_action))
+            self.inputs.append(self.policy_input(obs, self.prev_action))
             command = super().act(obs)
             self.commands.append(command)
             return command
@@ -282,13 +287,13 @@ def test_weights_load_and_learned_controllers_evaluate_without_torch() -> None:
         """
         import sys
         sys.modules["torch"] = None  # any `import torch` now raises ImportError
-        from scftc_cli.baselines.ppo import load_policy
-        from scftc_cli.baselines.rma import load_student
+        from scftc_cli.versions.v1.controllers.ppo import E2EPPO
+        from scftc_cli.versions.v1.controllers.rma import load_student
         from scftc_cli.evaluate import Cell, evaluate_cell
         from scftc_cli.registry import make_controller
-        from scftc_cli.spec import V1
+        from scftc_cli.versions.v1.spec import V1
 
-        load_policy()
+        E2EPPO()
         for name in ("rma_student", "rma_dob"):
             load_student(name)
         for name in ("rma_dob", "rma_student", "e2e_ppo"):
@@ -328,7 +333,7 @@ def test_weights_files_are_plain_npz(tmp_path) -> None:
 
 
 def test_prior_clamp_constants_are_the_correctly_rounded_logs() -> None:
-    from scftc_cli.baselines.rma import LOG_MAG_MAX, LOG_MAG_MIN
+    from scftc_cli.versions.v1.controllers.rma import LOG_MAG_MAX, LOG_MAG_MIN
 
     assert LOG_MAG_MIN == float(np.log(np.longdouble(0.1))) == math.log(0.1)
     assert LOG_MAG_MAX == float(np.log(np.longdouble(3.0))) == math.log(3.0)

@@ -34,8 +34,8 @@ from scftc_cli.errors import LeaderboardError, UnknownNameError
 from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, FinalError
 from scftc_cli.scoring import gate_stat, wilson_interval
-from scftc_cli.spec import V1
 from scftc_cli.statistics import profile_counts, two_sample_by_fault
+from scftc_cli.versions.v1.spec import V1
 
 runner = CliRunner()
 N = V1.episodes_per_cell  # 500: boards hold full-size entries only

@@ -20,7 +20,7 @@ from scftc_cli.board.verify import compare_cells, verify
 from scftc_cli.commands.app import app
 from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.registry import make_controller, registry
-from scftc_cli.spec import V1
+from scftc_cli.versions.v1.spec import V1
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[2]

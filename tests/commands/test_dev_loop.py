@@ -13,9 +13,11 @@ import pytest
 from scipy.stats import binomtest
 from typer.testing import CliRunner
 
-from scftc_cli.baselines.params import PARAMS_DIR
 from scftc_cli.commands.app import app
 from scftc_cli.statistics import paired_by_fault
+from scftc_cli.versions.v1 import VERSION
+
+PARAMS_DIR = VERSION.params_dir
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[2]

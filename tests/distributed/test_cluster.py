@@ -29,8 +29,8 @@ from scftc_cli.distributed.runner import ChunkTask, Runner, cluster, run_chunk
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, evaluate_cells, select_cells
 from scftc_cli.registry import make_controller, registry
-from scftc_cli.spec import V1
 from scftc_cli.training import TrainRequest, tuning
+from scftc_cli.versions.v1.spec import V1
 
 runner_cli = CliRunner()
 CELLS = select_cells(V1, "test", None, None) + [Cell("test", "sign", "bias_0.2")]
@@ -179,6 +179,6 @@ def test_tuning_on_the_cluster_equals_the_serial_deferred_run(dask_runner: Runne
         request = TrainRequest(
             controller="nussbaum", budget="quick", seed=2, out=tmp_path / f"{label}.yaml", runner=runner
         )
-        tuning.tune(tuning.SPECS["nussbaum"], request)
+        tuning.tune(tuning.tune_spec("nussbaum", "scftc-v1"), request)
         out[label] = yaml.safe_load((tmp_path / f"{label}.yaml").read_text())["params"]
     assert out["cluster"] == out["serial"]

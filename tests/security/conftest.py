@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scftc_cli.sim.v1 import public_context
 from scftc_cli.submission import isolation
 from scftc_cli.submission.limits import SandboxLimits
 from scftc_cli.submission.manifest import load_submission
 from scftc_cli.submission.sandbox import Sandbox
+from scftc_cli.versions.v1.sim.testbed import public_context
 
 UNAVAILABLE = isolation.sandbox_unavailable()
 needs_sandbox = pytest.mark.skipif(UNAVAILABLE is not None, reason=f"no sandbox here: {UNAVAILABLE}")

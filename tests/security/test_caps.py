@@ -22,10 +22,10 @@ import numpy as np
 import pytest
 
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.sim.v1 import public_context
 from scftc_cli.submission import cgroups, isolation
 from scftc_cli.submission.limits import SandboxLimits
 from scftc_cli.submission.sandbox import Sandbox
+from scftc_cli.versions.v1.sim.testbed import public_context
 from tests.security.conftest import attacker_source, fly, needs_sandbox, processes_with, sandbox
 
 pytestmark = needs_sandbox
@@ -455,7 +455,7 @@ def test_only_the_standard_library_of_the_interpreter_is_mounted(tmp_path: Path)
 PARENT = """
 import sys, time
 import numpy as np
-from scftc_cli.sim.v1 import public_context
+from scftc_cli.versions.v1.sim.testbed import public_context
 from scftc_cli.submission.sandbox import Sandbox
 
 source = open(sys.argv[1], "rb").read()

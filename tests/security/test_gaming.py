@@ -18,8 +18,8 @@ from scftc_cli.board.ranking import rank_board
 from scftc_cli.board.rounds import read_key, write_key
 from scftc_cli.board.store import read_board
 from scftc_cli.commands.app import app
-from scftc_cli.sim.v1 import TESTBED
-from scftc_cli.spec import V1
+from scftc_cli.versions.v1.sim.testbed import TESTBED
+from scftc_cli.versions.v1.spec import V1
 
 from .conftest import needs_sandbox
 

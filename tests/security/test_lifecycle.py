@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.sim.v1 import public_context
 from scftc_cli.submission.limits import SandboxLimits
+from scftc_cli.versions.v1.sim.testbed import public_context
 from tests.security.conftest import attacker_source, needs_sandbox, processes_with, sandbox
 
 pytestmark = needs_sandbox
@@ -68,7 +68,7 @@ def test_an_exception_through_the_context_manager_ends_the_sandbox(tmp_path: Pat
 PARENT = """
 import signal, sys, time
 import numpy as np
-from scftc_cli.sim.v1 import public_context
+from scftc_cli.versions.v1.sim.testbed import public_context
 from scftc_cli.submission.sandbox import Sandbox
 
 # As an interactive user's Ctrl-C finds it, even when the test run itself was started in the

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.sim.v1 import public_context
+from scftc_cli.versions.v1.sim.testbed import public_context
 from tests.security.conftest import attacker_source, fly, needs_sandbox, processes_with, sandbox
 
 pytestmark = needs_sandbox

@@ -23,8 +23,8 @@ from scftc_cli.board.ranking import rank_board
 from scftc_cli.board.rounds import round_secret, sealed_salt, write_key
 from scftc_cli.board.verify import verify
 from scftc_cli.commands.app import app
-from scftc_cli.spec import V1
 from scftc_cli.submission.manifest import load_submission
+from scftc_cli.versions.v1.spec import V1
 
 from .conftest import needs_sandbox
 
@@ -65,7 +65,7 @@ class Ctl:
 def public_rates() -> str:
     """``PUBLIC = {...}``: the initial body rates of every public episode of the board's cells."""
     from scftc_cli.evaluate import board_cells
-    from scftc_cli.sim.v1 import TESTBED
+    from scftc_cli.versions.v1.sim.testbed import TESTBED
 
     rows: set[tuple[float, ...]] = set()
     for cell in board_cells(V1):

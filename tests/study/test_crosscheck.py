@@ -20,22 +20,25 @@ from scftc_cli.errors import UnknownNameError
 from scftc_cli.evaluate import Cell
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v2 import CONSTANTS, TESTBED
-from scftc_cli.spec import V1, V2
 from scftc_cli.study.crosscheck import (
-    GROUPS,
     TOLERANCE,
-    V2_GROUPS,
-    CrosscheckResult,
     GroupCheck,
-    WheelCrosscheckResult,
-    WheelGroupCheck,
     crosscheck,
     default_controllers,
     plan,
-    saturation,
     split_episodes,
     total_steps,
+)
+from scftc_cli.versions.v1.spec import V1
+from scftc_cli.versions.v1.study import GROUPS
+from scftc_cli.versions.v1.study import RigidCrosscheckResult as CrosscheckResult
+from scftc_cli.versions.v2.sim.testbed import CONSTANTS, TESTBED
+from scftc_cli.versions.v2.spec import V2
+from scftc_cli.versions.v2.study import GROUPS as V2_GROUPS
+from scftc_cli.versions.v2.study import (
+    WheelCrosscheckResult,
+    WheelGroupCheck,
+    saturation,
     wheel_one_step_diff,
 )
 
@@ -48,7 +51,7 @@ OMEGA_MAX = CONSTANTS.omega_max_rad_s
 def bsk():
     """The v2 Basilisk backend module; skips the test where ``bsk`` is not installed."""
     pytest.importorskip("Basilisk")
-    from scftc_cli.sim.v2 import basilisk
+    from scftc_cli.versions.v2.sim import basilisk
 
     return basilisk
 
@@ -186,7 +189,7 @@ def test_bad_usage_exits_2_with_one_clear_line(args: list[str], message: str):
 
 def test_missing_basilisk_exits_1_with_an_install_hint(monkeypatch):
     for name in list(sys.modules):
-        if name.split(".")[0] == "Basilisk" or name.startswith("scftc_cli.sim.v2.basilisk"):
+        if name.split(".")[0] == "Basilisk" or name.startswith("scftc_cli.versions.v2.sim.basilisk"):
             monkeypatch.delitem(sys.modules, name)
     monkeypatch.setitem(sys.modules, "Basilisk", None)  # None in sys.modules: ImportError
     result = runner.invoke(app, ["crosscheck", "--benchmark", "scftc-v2", "--episodes", "1"])

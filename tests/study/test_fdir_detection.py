@@ -12,12 +12,10 @@ import pytest
 from scftc_cli.evaluate import Cell, CellRun
 from scftc_cli.protocol import Progress
 from scftc_cli.registry import registry
-from scftc_cli.spec import V1, V2
 from scftc_cli.study import run as study_run
 from scftc_cli.study.figures import fdir_detection as detection_figure
 from scftc_cli.study.figures import save, write_figures
 from scftc_cli.study.run import (
-    DETECTOR,
     Detection,
     fdir_detection,
     measures_detection,
@@ -25,8 +23,12 @@ from scftc_cli.study.run import (
     run_study,
 )
 from scftc_cli.study.tables import detection_markdown, detection_rows, write_tables
+from scftc_cli.versions import get_version
+from scftc_cli.versions.v1.spec import V1
+from scftc_cli.versions.v2.spec import V2
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+DETECTOR = get_version(V2.version).study.detector or ""
 
 
 def _redrawn_run(fault_class: str) -> CellRun:

@@ -16,8 +16,6 @@ from scftc_cli.protocol import Controller, Progress
 from scftc_cli.records import CellResult, EvalResult, FinalError, GateStat
 from scftc_cli.registry import ControllerSpec, make_controller, registry
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.sim.v1.faults import draw_episodes
-from scftc_cli.spec import V1 as SPEC
 from scftc_cli.statistics import PROFILE_TAUS_DEG
 from scftc_cli.study import run as study_run
 from scftc_cli.study.figures import FIGURES
@@ -29,6 +27,8 @@ from scftc_cli.study.run import (
     sensor_bias_deg,
     sensor_regime,
 )
+from scftc_cli.versions.v1.sim.testbed import TESTBED
+from scftc_cli.versions.v1.spec import V1 as SPEC
 
 runner = CliRunner()
 N_FAULTS, N_SEEDS = 2, 2
@@ -106,7 +106,7 @@ def test_sensor_json_is_what_eval_prints_and_holds_the_teacher(study_dir: Path) 
     names = [r["controller"] for r in doc["results"]]
     assert "teacher" in names and doc["deployed"] in names
     assert not next(r for r in doc["results"] if r["controller"] == doc["deployed"])["privileged"]
-    assert doc["regimes"] == {s: sensor_regime(s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults}
+    assert doc["regimes"] == {s: sensor_regime(SPEC, s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults}
     for result in doc["results"]:
         assert [c["sensor"] for c in result["cells"]] == list(SPEC.sensor_faults)
         assert result == _eval_json("--controller", result["controller"], "--sensor", "all")
@@ -161,7 +161,7 @@ def test_distributions_agree_with_the_battery_and_the_sensor_table(study_dir: Pa
 
 
 def test_regime_rule_follows_the_gate() -> None:
-    assert [sensor_regime(s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults] == [
+    assert [sensor_regime(SPEC, s, SPEC.gates.settled_deg) for s in SPEC.sensor_faults] == [
         "controllable",  # bias_0.1: 0.1 deg < 0.2 deg gate
         "shield-only",  # bias_0.2: the truth parks on the gate itself
         "shield-only",
@@ -169,17 +169,17 @@ def test_regime_rule_follows_the_gate() -> None:
         "shield-only",  # dropout: no attitude measured
         "shield-only",  # stuck: likewise
     ]
-    assert sensor_regime("bias_0.3", gate_deg=0.4) == "controllable"
-    assert sensor_bias_deg("bias_0.5") == 0.5 and sensor_bias_deg("dropout") is None
+    assert sensor_regime(SPEC, "bias_0.3", gate_deg=0.4) == "controllable"
+    assert sensor_bias_deg(SPEC, "bias_0.5") == 0.5 and sensor_bias_deg(SPEC, "dropout") is None
 
 
 @pytest.mark.parametrize("sensor", ["bias_0.3", "bias_0.5"])
 def test_sensor_bias_leaves_the_true_attitude_off_by_the_bias(sensor: str) -> None:
     """The teacher regulates the *measured* attitude to zero; an unobservable constant offset
     leaves the true one parked at the bias, above the gate."""
-    episodes = draw_episodes("test", "sign", sensor, n_faults=5, n_seeds=2)
+    episodes = TESTBED.draw("test", "sign", sensor, n_faults=5, n_seeds=2)
     final_deg = rollout(make_controller("teacher"), episodes).final_error_deg
-    bias_deg = sensor_bias_deg(sensor)
+    bias_deg = sensor_bias_deg(SPEC, sensor)
     assert np.all(np.abs(final_deg - bias_deg) < 0.05), final_deg
     assert np.all(final_deg > SPEC.gates.settled_deg)
 
@@ -189,7 +189,7 @@ def test_sensor_json_teacher_parks_at_the_bias(study_dir: Path) -> None:
     doc = json.loads((study_dir / "sensor.json").read_text())
     teacher = next(r for r in doc["results"] if r["controller"] == "teacher")
     for cell in teacher["cells"]:
-        bias = sensor_bias_deg(cell["sensor"])
+        bias = sensor_bias_deg(SPEC, cell["sensor"])
         if bias is not None and bias >= 0.3:
             assert abs(cell["final_error_deg"]["median"] - bias) < 0.05
             assert cell["settled"]["k"] == 0
@@ -220,9 +220,9 @@ def test_deployed_choice_prefers_rma_dob_then_the_best_deployable() -> None:
     weak = _result("pd", False, {})
     strong = _result("rls_dob", False, {"sign": 0.9, "gain": 0.8})
     rma_dob = _result("rma_dob", False, {"sign": 0.5, "gain": 0.5})
-    assert choose_deployed([weak, strong, teacher])[0] == "rls_dob"  # never the oracle
-    assert choose_deployed([weak, strong, rma_dob, teacher])[0] == "rma_dob"
-    assert choose_deployed([teacher])[0] is None
+    assert choose_deployed([weak, strong, teacher], "rma_dob")[0] == "rls_dob"  # never the oracle
+    assert choose_deployed([weak, strong, rma_dob, teacher], "rma_dob")[0] == "rma_dob"
+    assert choose_deployed([teacher], "rma_dob")[0] is None
 
 
 class _Broken(Controller):

@@ -20,8 +20,6 @@ from typer.testing import CliRunner
 from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.sim.v1 import public_context
-from scftc_cli.spec import V1
 from scftc_cli.submission import isolation
 from scftc_cli.submission.limits import SandboxLimits
 from scftc_cli.submission.manifest import (
@@ -31,6 +29,8 @@ from scftc_cli.submission.manifest import (
     terminal_safe,
 )
 from scftc_cli.submission.sandbox import OUTPUT_BYTES, Sandbox
+from scftc_cli.versions.v1.sim.testbed import public_context
+from scftc_cli.versions.v1.spec import V1
 
 needs_sandbox = pytest.mark.skipif(
     isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())

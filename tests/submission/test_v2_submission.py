@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
-from scftc_cli.spec import V2
 from scftc_cli.submission import isolation
+from scftc_cli.versions.v2.spec import V2
 
 needs_sandbox = pytest.mark.skipif(
     isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())

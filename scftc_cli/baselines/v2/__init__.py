@@ -1,1 +1,0 @@
-"""``scftc-v2``'s built-in controllers: the shared analytic law (``law``) and its ports."""

@@ -1,0 +1,73 @@
+"""How fast, and how falsely, a controller's fault detector fires: the study's detection statistics.
+
+A controller with a detector records, after a rollout, ``alarm_steps`` and ``change_steps``
+``(n, steps, m)`` (bool: the detector's alarm, and a confirmed change, on actuator ``i`` at step
+``k``), where the test of step ``k`` looks at the step ``k - 1`` just flown. The episodes' fault
+says when it starts (``onset_step`` ``(n,)``) and which actuators it leaves healthy
+(``healthy_actuators()`` ``(n, m)``). Nothing here knows which version or controller it measures:
+the version names the detector it measures (``StudyPlan.detector``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from scftc_cli.protocol import Controller
+from scftc_cli.scoring import gate_outcomes
+from scftc_cli.sim.episodes import Episodes
+from scftc_cli.sim.rollout import rollout
+from scftc_cli.spec import GateSpec
+
+
+class Detecting(Protocol):
+    """What a controller with a detector keeps after a rollout."""
+
+    @property
+    def alarm_steps(self) -> np.ndarray: ...
+
+    @property
+    def change_steps(self) -> np.ndarray: ...
+
+
+def before_onset(steps: int, onset_step: np.ndarray) -> np.ndarray:
+    """``(n, steps)``: the steps whose test looks at a healthy step (``k <= onset``)."""
+    return np.arange(steps)[None, :] <= np.asarray(onset_step)[:, None]
+
+
+def detection_stats(controller: Controller, episodes: Episodes, gates: GateSpec) -> dict[str, np.ndarray]:
+    """Fly ``controller`` through ``episodes`` and measure its detector.
+
+    A fault in force from step ``onset`` is seen first at ``k = onset + 1``: a delay of 1 is the
+    earliest possible.
+
+    Returns per episode ``(n,)``:
+        ``delay_steps``: first confirmed change on a faulted actuator minus the onset, in steps (-1
+            where none was confirmed after the onset, or no actuator changed);
+        ``faulted``: some actuator differs from a healthy one;
+        ``pre_onset_alarms``: actuator-steps with an alarm up to the onset (false alarms);
+        ``pre_onset_steps``: actuator-steps tested up to the onset (their exposure);
+        ``healthy_alarms``: actuator-steps with an alarm over the whole episode on the actuators the
+            fault leaves healthy, and ``healthy_wheel_steps`` their exposure;
+        ``settled``: the settled gate, for reference.
+    """
+    result = rollout(controller, episodes)
+    detector: Any = controller
+    fault: Any = episodes.fault  # type: ignore[attr-defined]
+    onset = np.asarray(fault.onset_step)
+    healthy = fault.healthy_actuators()
+    alarms, changes = detector.alarm_steps, detector.change_steps  # (n, steps, m)
+    before = before_onset(alarms.shape[1], onset)
+    on_faulted = (changes & ~before[:, :, None] & ~healthy[:, None, :]).any(axis=2)
+    first = np.where(on_faulted.any(axis=1), np.argmax(on_faulted, axis=1), -1)
+    m = alarms.shape[2]
+    return {
+        "delay_steps": np.where(first >= 0, first - onset, -1),
+        "faulted": ~healthy.all(axis=1),
+        "pre_onset_alarms": (alarms & before[:, :, None]).sum(axis=(1, 2)),
+        "pre_onset_steps": m * before[:, 1:].sum(axis=1),
+        "healthy_alarms": (alarms & healthy[:, None, :]).sum(axis=(1, 2)),
+        "healthy_wheel_steps": healthy.sum(axis=1) * (alarms.shape[1] - 1),
+        "settled": gate_outcomes(result, gates)["settled"],
+    }

@@ -1,0 +1,374 @@
+"""Per-wheel fault detection and re-identification from the tachometers, for ``scftc-v2``.
+
+The tachometers make each wheel's realized torque over a step measurable (docs/benchmark-v2.md,
+sec. 5): integrating ``Omega_dot_i = (u_i + fr_i) / Js - g_i . w_dot`` over a step,
+
+    tau_i = Js [(Omega_i,k+1 - Omega_i,k) + g_i . (w_k+1 - w_k)] / dt      (N m, mean over the step)
+
+with the tachometer and gyro readings; its noise is ``sqrt(2) 0.01 Js / dt`` = 9e-5 N m (0.09 % of
+``u_max``), white but for the shared tachometer sample of neighbouring steps. The model of a wheel,
+in fractions of ``u_max``, is linear in ``theta_i = (g_i, b_i, c_i)`` (effectiveness, offset,
+Coulomb level ``fC_i / u_max``):
+
+    tau_i / u_max = clip(g_i a_i + b_i) - c_i s_i - cV Omega_i / u_max,
+
+``a_i`` the command held over the step and ``s_i`` the mean over the step of the friction's shape
+``clip(Omega / wLC, -1, 1)`` the way the plant's RK4 step averages it (``friction_shape``: the
+sign outside the linear zone; inside it, and across its edge, the stages' weighted mean). Samples
+the model does not hold for are skipped: a wheel at its speed limit; a sample whose measured
+motor torque clipped is tested (the prediction clips too) but not fitted (it is not linear in
+``theta``).
+
+- **Detection**: a two-sided CUSUM per wheel on the normalized residual ``z = (tau - tau_hat) /
+  sigma_r`` of the a-priori estimate (Page 1954; Basseville & Nikiforov, *Detection of Abrupt
+  Changes*, 1993, sec. 2.2): ``S+ = max(0, S+ + z - kappa)``, ``S- = max(0, S- - z - kappa)``, alarm
+  at ``h``. The change time is estimated inside the alarmed sum's run (since it was last zero) as
+  the start of the newest samples whose mean residual is most significant, ``max_j (sum z)^2 / j``
+  (the GLR of a mean shift of unknown size; sec. 2.4 there).
+- **Re-identification**: a least-squares fit of ``theta_i`` on every valid sample since the last
+  confirmed change, ridge-regularized towards a prior (standard deviations ``prior_*``). At an alarm,
+  the fit on the whole window is refitted and asked whether it explains the samples since the
+  estimated change time (their mean squared normalized residual below ``consistent``): if so, the
+  alarm came from new excitation (e.g. a wheel crossing zero speed separates the offset from the
+  friction), and the window is kept; otherwise the change is confirmed and the window restarts at
+  the estimated change time with the previous estimate as a weak prior (a GLR-style test with the
+  change time from the CUSUM, instead of trusting a latched estimate).
+- **Isolation**: a wheel whose change is confirmed leaves the allocation until it is
+  re-identified (the standard deviation of its effectiveness below ``reid_sd``); meanwhile the
+  controller probes it alone with an alternating command (``fdir.py``). The probe, not the closed
+  loop, then excites the fit: commands computed from a wrong estimate would be collinear with the
+  regressors, or clip the wheel, and teach the fit nothing.
+- A wheel whose effectiveness falls below ``dead_gain`` is declared dead and stays out of the
+  allocation; it is revived above ``revive_gain`` (hysteresis). The controller keeps probing a
+  dead wheel with a small dither, so a wrong verdict is corrected by its own data.
+
+Shapes: ``n`` episodes x ``m`` wheels; units as above.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
+from scftc_cli.versions.v2.controllers.mekf import inv3
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """The detector's tunable figures.
+
+    Attributes:
+        drift: CUSUM drift ``kappa`` (in residual standard deviations).
+        threshold: CUSUM alarm threshold ``h``.
+        model_noise: residual standard deviation beyond the tachometers' (fraction of ``u_max``).
+        consistent: mean squared normalized residual below which an alarm is explained by the
+            whole window (no change).
+        buffer: samples kept for the change-time estimate (steps).
+        prior_gain, prior_bias, prior_friction: prior standard deviations of ``g``, ``b`` and ``c``
+            about the previous estimate after a confirmed change (the ridge weights are their
+            inverse squares); while the speed keeps its sign, offset and friction are one lumped
+            term, shared in the ratio of these variances.
+        prior_start: the prior standard deviations about the nominal wheel at the start of an
+            episode, as a fraction of the above.
+        clip_margin: samples within this of a clipped command (fraction of ``u_max``) are skipped.
+        reid_sd: an isolated wheel returns once the standard deviation of ``g`` is below this.
+        dead_gain, revive_gain: a wheel is dead below ``|g| = dead_gain``, alive again above
+            ``revive_gain``.
+    """
+
+    drift: float = 2.0
+    threshold: float = 12.0
+    model_noise: float = 2e-4
+    consistent: float = 9.0
+    buffer: int = 12
+    prior_gain: float = 1.0
+    prior_bias: float = 0.2
+    prior_friction: float = 0.05
+    prior_start: float = 0.01
+    clip_margin: float = 0.02
+    reid_sd: float = 0.02
+    dead_gain: float = 0.15
+    revive_gain: float = 0.25
+
+
+def friction_shape(
+    start: np.ndarray,
+    end: np.ndarray,
+    coulomb_nm: np.ndarray,
+    wheels: WheelKnowledge,
+    dt_s: float,
+    iterations: int = 8,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How the plant's RK4 step averaged the friction over a step, from the wheel speeds at its two
+    ends (rad/s, ``(n, m)``) and a Coulomb level ``fC`` (N m, the current estimate); returns
+    ``(shape, mean_speed, exact)``.
+
+    The plant evaluates the friction ``fr(Omega) = -fC clip(Omega / wLC, -1, 1) - cV Omega`` at the
+    four RK4 stages, so the torque the tachometers measure over the step holds the weighted mean
+    ``-fC shape - cV mean_speed`` of the stages, ``shape = sum_i w_i clip(Omega_i / wLC)`` and
+    ``mean_speed = sum_i w_i Omega_i`` with weights (1, 2, 2, 1) / 6. Outside the linear zone the
+    shape is ``sign(Omega)``; inside it the speed relaxes within the step (at 60 fC0 faster than
+    the step), and near its edge the stages straddle it, where the mean of the two ends is off by
+    tens of noise levels. The stages follow from the speed at the start and the torque ``e`` held
+    over the step (motor plus the hub's reaction, taken constant); ``e`` is the root of the RK4
+    map ``Omega_end(e) = end``, monotone and piecewise linear in ``e``, found by Newton's method.
+    ``exact`` is false where it did not converge (the sample is then skipped).
+    """
+    js, w, cv = wheels.spin_inertia_kgm2, wheels.omega_linear_rad_s, wheels.viscous_nms
+    weights = (1.0, 2.0, 2.0, 1.0)
+    steps = (0.5 * dt_s, 0.5 * dt_s, dt_s)
+
+    def friction(speed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        inside = np.abs(speed) < w
+        value = -coulomb_nm * np.clip(speed / w, -1.0, 1.0) - cv * speed
+        return value, np.where(inside, -coulomb_nm / w, 0.0) - cv
+
+    def rk4(e: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        speed, slope_e = start, np.zeros_like(start)
+        total, total_e, stages = np.zeros_like(start), np.zeros_like(start), []
+        for i, weight in enumerate(weights):
+            stages.append(speed)
+            value, slope = friction(speed)
+            k = (e + value) / js
+            k_e = (1.0 + slope * slope_e) / js
+            total, total_e = total + weight * k, total_e + weight * k_e
+            if i < 3:
+                speed, slope_e = start + steps[i] * k, steps[i] * k_e
+        return start + dt_s / 6.0 * total - end, dt_s / 6.0 * total_e, stages
+
+    e = js * (end - start) / dt_s - friction(0.5 * (start + end))[0]
+    for _ in range(iterations):
+        miss, slope, _ = rk4(e)
+        e = e - miss / slope
+    miss, _, stages = rk4(e)
+    shape, mean_speed = np.zeros_like(start), np.zeros_like(start)
+    for weight, stage in zip(weights, stages, strict=True):
+        shape = shape + weight * np.clip(stage / w, -1.0, 1.0)
+        mean_speed = mean_speed + weight * stage
+    return shape / 6.0, mean_speed / 6.0, np.abs(miss) < 1e-9
+
+
+LOWER = np.array([-3.0, -1.0, 0.0])
+UPPER = np.array([3.0, 1.0, 0.5])
+"""Physical bounds on ``(g, b, c)``: the estimate is clamped into them, so that a fit on a few
+nearly collinear samples right after a change cannot run away (friction is never negative)."""
+
+
+def clamp(theta: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``theta`` ``(..., 3)`` pulled into ``[LOWER, UPPER]`` one component at a time, the others
+    moved to their conditional mean given it (Gaussian conditioning on ``cov`` ``(..., 3, 3)``), so
+    that what the data fix well (e.g. the lumped offset ``b - c s``) survives a clamped split."""
+    for j in (2, 0, 1):
+        clipped = np.clip(theta[..., j], LOWER[j], UPPER[j])
+        var = cov[..., j, j]
+        move = (clipped != theta[..., j]) & (var > 1e-18)  # a pinned component moves nothing
+        if move.any():
+            column = cov[..., :, j]
+            scale = np.where(move, (clipped - theta[..., j]) / np.where(move, var, 1.0), 0.0)
+            theta = theta + column * scale[..., None]
+            conditioned = (
+                cov - column[..., :, None] * column[..., None, :] / np.where(move, var, 1.0)[..., None, None]
+            )
+            cov = np.where(move[..., None, None], conditioned, cov)
+        theta[..., j] = clipped
+    return theta, cov
+
+
+class WheelMonitor:
+    """Detection and re-identification of every wheel of a batch (module docstring).
+
+    Per step: ``observe(tachometers, gyro)`` folds in the step just flown (with the command given
+    by ``commanded`` at the previous step), then ``gain``, ``bias``, ``coulomb_nm`` and ``dead``
+    ``(n, m)`` are the current estimates.
+
+    Diagnostics kept for the study: ``alarm_log`` (one ``(n, m)`` bool per step: a CUSUM alarm),
+    ``statistic_log`` (the CUSUM statistic ``max(S+, S-)`` before the alarm test, per step),
+    ``change_log`` (a confirmed change), ``detected_step`` ``(n, m)`` (first confirmed change, -1
+    if none).
+    """
+
+    def __init__(
+        self,
+        n: int,
+        wheels: WheelKnowledge,
+        sensors: SensorKnowledge,
+        dt_s: float,
+        settings: DetectorSettings,
+    ) -> None:
+        self.w, self.s, self.dt = wheels, settings, dt_s
+        m = len(wheels.spin_axes)
+        self.n, self.m = n, m
+        u = wheels.u_max_nm
+        tach = sensors.tachometer_noise_rad_s * wheels.spin_inertia_kgm2 / dt_s / u
+        self.sigma = float(np.sqrt(2.0 * tach * tach + settings.model_noise**2))
+        self.c0 = wheels.coulomb_nm / u
+        self.theta = np.broadcast_to(np.array([1.0, 0.0, self.c0]), (n, m, 3)).copy()
+        self.prior = self.theta.copy()
+        self.change_weight = (
+            1.0 / np.array([settings.prior_gain, settings.prior_bias, settings.prior_friction]) ** 2
+        )
+        self.prior_weight = np.broadcast_to(self.change_weight / settings.prior_start**2, (n, m, 3)).copy()
+        self.A = np.zeros((n, m, 3, 3))  # sum x x' / sigma^2 since the last confirmed change
+        self.y = np.zeros((n, m, 3))  # sum x tau / sigma^2
+        self.cov = np.zeros((n, m, 3, 3))
+        self._solve()
+        self.cusum = np.zeros((n, m, 2))
+        self.since_zero = np.zeros((n, m, 2), dtype=np.int64)  # steps since each sum was zero
+        B = settings.buffer
+        self.buf_x = np.zeros((B, n, m, 3))
+        self.buf_tau = np.zeros((B, n, m))
+        self.buf_ok = np.zeros((B, n, m), dtype=bool)
+        self.buf_z = np.zeros((B, n, m))
+        self.buf_tested = np.zeros((B, n, m), dtype=bool)
+        self.last_tach: np.ndarray | None = None
+        self.last_gyro: np.ndarray | None = None
+        self.last_command = np.zeros((n, m))
+        self._dead = np.zeros((n, m), dtype=bool)
+        self.isolated = np.zeros((n, m), dtype=bool)
+        self.detected_step = np.full((n, m), -1)
+        self.alarm_log: list[np.ndarray] = []
+        self.statistic_log: list[np.ndarray] = []
+        self.change_log: list[np.ndarray] = []
+        self.k = 0
+
+    # -- estimates ----------------------------------------------------------------------------
+
+    @property
+    def gain(self) -> np.ndarray:
+        return self.theta[..., 0]
+
+    @property
+    def bias(self) -> np.ndarray:
+        return self.theta[..., 1]
+
+    @property
+    def coulomb_nm(self) -> np.ndarray:
+        return self.theta[..., 2] * self.w.u_max_nm
+
+    @property
+    def in_service(self) -> np.ndarray:
+        """``(n, m)`` wheels the allocation may use: neither isolated nor dead."""
+        return ~self.isolated & ~self._dead
+
+    @property
+    def dead(self) -> np.ndarray:
+        """``(n, m)`` wheels out of the allocation (hysteresis between ``dead_gain`` and
+        ``revive_gain``)."""
+        return self._dead
+
+    def commanded(self, command: np.ndarray) -> None:
+        """The commands ``(n, m)`` held over the coming step."""
+        self.last_command = command.copy()
+
+    # -- one step -----------------------------------------------------------------------------
+
+    def _sample(
+        self, tach: np.ndarray, gyro: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(x (n, m, 3), tau (n, m), testable (n, m), linear (n, m))`` of the step just flown, in
+        fractions of ``u_max``: ``testable`` where the wheel was below its speed limit (the model
+        holds, clipping included), ``linear`` where, in addition, the measured motor torque did not
+        clip (the sample is linear in ``theta``)."""
+        assert self.last_tach is not None and self.last_gyro is not None
+        w, u = self.w, self.w.u_max_nm
+        dw = (gyro - self.last_gyro) @ w.spin_axes.T
+        tau = w.spin_inertia_kgm2 * ((tach - self.last_tach) + dw) / self.dt / u
+        shape, mean_speed, exact = friction_shape(self.last_tach, tach, self.coulomb_nm, w, self.dt)
+        tau = tau + w.viscous_nms * mean_speed / u  # the known viscous part, moved to the left
+        a = self.last_command
+        x = np.stack((a, np.ones_like(a), -shape), axis=-1)
+        testable = exact & (np.abs(self.last_tach) < w.omega_max_rad_s - 0.5)
+        motor_meas = tau + self.theta[..., 2] * shape
+        linear = testable & (np.abs(motor_meas) < 1.0 - self.s.clip_margin)
+        return x, tau, testable, linear
+
+    def _solve(self, rows: np.ndarray | None = None) -> None:
+        """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance."""
+        lam = self.prior_weight
+        info = self.A + lam[..., :, None] * np.eye(3)
+        cov = inv3(info)
+        theta = np.einsum("nmij,nmj->nmi", cov, self.y + lam * self.prior)
+        theta, cov = clamp(theta, cov)
+        if rows is None:
+            self.cov, self.theta = cov, theta
+        else:
+            self.cov = np.where(rows[..., None, None], cov, self.cov)
+            self.theta = np.where(rows[..., None], theta, self.theta)
+
+    def observe(self, tach: np.ndarray, gyro: np.ndarray) -> None:
+        """Fold in the step just flown: test, accumulate, re-identify."""
+        s = self.s
+        alarm = np.zeros((self.n, self.m), dtype=bool)
+        change = np.zeros_like(alarm)
+        statistic = np.zeros((self.n, self.m))
+        if self.last_tach is not None:
+            x, tau, testable, ok = self._sample(tach, gyro)
+            predicted = np.clip(self.gain * x[..., 0] + self.bias, -1.0, 1.0) + self.theta[..., 2] * x[..., 2]
+            z = np.where(testable, (tau - predicted) / self.sigma, 0.0)
+            # ring buffer of the last samples, newest at slot k % B
+            slot = self.k % s.buffer
+            self.buf_x[slot], self.buf_tau[slot], self.buf_ok[slot], self.buf_z[slot] = x, tau, ok, z
+            self.buf_tested[slot] = testable
+            # accumulate the linear sample into the window
+            xw = np.where(ok[..., None], x, 0.0) / self.sigma
+            self.A += xw[..., :, None] * xw[..., None, :]
+            self.y += xw * np.where(ok, tau, 0.0)[..., None] / self.sigma
+            # CUSUM
+            up = np.maximum(0.0, self.cusum[..., 0] + z - s.drift)
+            down = np.maximum(0.0, self.cusum[..., 1] - z - s.drift)
+            self.cusum = np.where(testable[..., None], np.stack((up, down), axis=-1), self.cusum)
+            self.since_zero = np.where(self.cusum > 0.0, self.since_zero + 1, 0)  # steps
+            statistic = self.cusum.max(axis=-1)
+            alarm = (statistic > s.threshold) & testable
+            self._solve()
+            if alarm.any():
+                change = self._on_alarm(alarm)
+        known = self.cov[..., 0, 0] < s.reid_sd**2  # the effectiveness is re-identified
+        self.isolated = (self.isolated | change) & ~known
+        size = np.abs(self.gain)
+        self._dead = np.where(self._dead, size < s.revive_gain, size < s.dead_gain)
+        self.alarm_log.append(alarm)
+        self.statistic_log.append(statistic)
+        self.change_log.append(change)
+        self.detected_step = np.where(change & (self.detected_step < 0), self.k, self.detected_step)
+        self.last_tach, self.last_gyro = tach.copy(), gyro.copy()
+        self.k += 1
+
+    def _on_alarm(self, alarm: np.ndarray) -> np.ndarray:
+        """Decide, per alarmed wheel, between new excitation (keep the window) and a change
+        (restart it at the estimated change time); returns the confirmed changes ``(n, m)``."""
+        s = self.s
+        side = np.argmax(self.cusum, axis=-1)
+        since = np.take_along_axis(self.since_zero, side[..., None], axis=-1)[..., 0]
+        since = np.clip(since, 1, s.buffer)
+        # the change time: the newest j samples (j <= since) whose mean residual is the most
+        # significant, (sum z)^2 / j, the GLR of a mean shift of unknown size
+        age = (self.k - np.arange(s.buffer)[:, None, None]) % s.buffer  # (B, 1, 1): 0 = newest
+        order = np.argsort(age[:, 0, 0])  # slots from the newest to the oldest
+        z = self.buf_z[order]  # (B, n, m), newest first
+        tested = self.buf_tested[order].cumsum(axis=0)
+        glr = z.cumsum(axis=0) ** 2 / np.maximum(tested, 1)
+        j = np.arange(1, s.buffer + 1)[:, None, None]
+        glr = np.where(j <= since[None], glr, -1.0)
+        length = np.argmax(glr, axis=0) + 1  # (n, m)
+        inside = (age < length[None]) & self.buf_ok  # (B, n, m)
+        fitted = np.einsum("bnmi,nmi->bnm", self.buf_x, self.theta)
+        resid = (self.buf_tau - fitted) / self.sigma
+        count = inside.sum(axis=0)
+        mse = (resid * resid * inside).sum(axis=0) / np.maximum(count, 1)
+        change = alarm & ((mse > s.consistent) | (count == 0))
+        if change.any():
+            xw = self.buf_x * inside[..., None] / self.sigma
+            A_new = np.einsum("bnmi,bnmj->nmij", xw, xw)
+            y_new = np.einsum("bnmi,bnm->nmi", xw, self.buf_tau / self.sigma)
+            weights = self.change_weight
+            self.A = np.where(change[..., None, None], A_new, self.A)
+            self.y = np.where(change[..., None], y_new, self.y)
+            self.prior = np.where(change[..., None], self.theta, self.prior)
+            self.prior_weight = np.where(change[..., None], weights, self.prior_weight)
+            self._solve(change)
+        self.cusum = np.where(alarm[..., None], 0.0, self.cusum)
+        self.since_zero = np.where(alarm[..., None], 0, self.since_zero)
+        return change

@@ -1,0 +1,302 @@
+"""A batched multiplicative extended Kalman filter for ``scftc-v2``: attitude and gyro bias from
+three star-tracker heads and a gyro, with per-head fault detection and isolation.
+
+Markley & Crassidis, *Fundamentals of Spacecraft Attitude Determination and Control* (2014),
+sec. 6.2 (the MEKF) and ch. 7 (the gyro model). The reference attitude is kept as an MRP
+``sigma_hat`` (body relative to inertial, the benchmark's convention); the filter's state is the
+body-frame attitude error ``dtheta`` (rad, ``C_true = exp(-[dtheta x]) C_hat``) and the gyro bias
+``b`` (rad/s), with covariance ``P`` ``(n, 6, 6)``.
+
+- Propagation over a step with the trapezoid of the last two gyro readings minus the bias
+  estimate, ``w_hat = (w_m,k-1 + w_m,k) / 2 - b_hat``:
+  ``dtheta' = exp(-[w_hat dt x]) dtheta - dt db``; process noise from the gyro's white noise
+  (``sigma_v``, the context's per-sample figure) and a bias random walk ``sigma_u`` (tuned): the
+  constant bias of every episode and the bias *step* of the ``gyro_bias`` fault are both tracked.
+- Update with every head that is valid, not latched as faulty, and passes its innovation gate;
+  they share ``H = [I 0]``, so their mean innovation with ``R / m`` is the batch update.
+- Per-head tests: a head whose reading repeats bit for bit is frozen (a noisy head never repeats):
+  latched out. A head whose innovation differs from every other head's by more than the gate
+  (``|nu_h - nu_j|^2 / 2R``, chi-square with 3 dof) while the others agree is an outlier: it is left
+  out of the update, and isolated after ``isolate_after`` consecutive outlier steps (re-admitted
+  after ``readmit_after`` consistent ones). The test is between heads, so a filter that is off
+  (a gyro-bias step) never isolates a healthy head; that case is the next test's: when every
+  head in use fails its gate against the prediction, ``NIS = nu' (P_tt + R)^-1 nu`` above the
+  gate, for ``isolate_after`` steps, the filter re-opens its covariance.
+- Bias-step detector: a two-sided CUSUM per axis on the normalized fused innovation; an alarm adds
+  ``step_inflation^2`` to the bias covariance, so the filter re-learns a changed bias quickly
+  instead of at the random walk's pace.
+- An outage (no valid head) only propagates: the attitude rides on the gyro minus the bias estimate.
+
+Units: rad, rad/s, s. Shapes: ``n`` episodes; heads ``(n, 3, 3)`` MRP, validity ``(n, 3)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scftc_cli.protocol import SensorKnowledge
+from scftc_cli.sim.mrp import compose, norm2
+from scftc_cli.versions.v2.controllers.law import nearest_branch, rotation_mrp, vote
+
+
+@dataclass(frozen=True)
+class MEKFSettings:
+    """The filter's tunable figures (the sensor noise figures come from the context).
+
+    Attributes:
+        bias_walk: bias random walk ``sigma_u``, rad/s per sqrt(s).
+        gyro_noise_scale: multiplies the context's gyro white noise in the process noise.
+        gate: chi-square gate (3 dof) of the head tests (between heads, and against the filter).
+        isolate_after: consecutive outlier steps that isolate a head (or consecutive steps of every
+            head failing against the prediction that re-open ``P``).
+        readmit_after: consecutive passes that re-admit an isolated head.
+        step_drift: CUSUM drift ``kappa`` on the normalized fused innovation (per axis).
+        step_threshold: CUSUM threshold ``h``; an alarm inflates the bias covariance.
+        step_inflation: bias standard deviation added on an alarm, rad/s.
+    """
+
+    bias_walk: float = 1e-6
+    gyro_noise_scale: float = 1.0
+    gate: float = 25.0
+    isolate_after: int = 3
+    readmit_after: int = 50
+    step_drift: float = 1.0
+    step_threshold: float = 12.0
+    step_inflation: float = 3e-4
+
+
+def inv3(m: np.ndarray) -> np.ndarray:
+    """Inverse of a stack of 3x3 matrices ``(..., 3, 3)`` by the adjugate (faster than LAPACK
+    for small matrices; the callers' matrices are covariances, well conditioned)."""
+    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    co = np.stack(
+        (
+            np.stack((e * i - f * h, c * h - b * i, b * f - c * e), axis=-1),
+            np.stack((f * g - d * i, a * i - c * g, c * d - a * f), axis=-1),
+            np.stack((d * h - e * g, b * g - a * h, a * e - b * d), axis=-1),
+        ),
+        axis=-2,
+    )
+    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
+    return co / det[..., None, None]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """``[v x]`` ``(n, 3, 3)`` of rows ``(n, 3)``."""
+    z = np.zeros(len(v))
+    return np.stack(
+        (
+            np.stack((z, -v[:, 2], v[:, 1]), axis=1),
+            np.stack((v[:, 2], z, -v[:, 0]), axis=1),
+            np.stack((-v[:, 1], v[:, 0], z), axis=1),
+        ),
+        axis=1,
+    )
+
+
+def rotation_matrix(phi: np.ndarray) -> np.ndarray:
+    """``exp(-[phi x])`` ``(n, 3, 3)``, the DCM of a body rotation by ``phi`` ``(n, 3)`` rad
+    (Rodrigues' formula, series below 1e-4 rad)."""
+    angle2 = norm2(phi)
+    angle = np.sqrt(angle2)
+    small = angle < 1e-4
+    safe = np.where(small, 1.0, angle)
+    a = np.where(small, 1.0 - angle2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - angle2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    k = skew(phi)
+    return np.eye(3) - a[:, None, None] * k + b[:, None, None] * (k @ k)
+
+
+def rotation_vector(sigma: np.ndarray) -> np.ndarray:
+    """Rotation vector ``4 atan(|sigma|) sigma / |sigma|`` ``(n, 3)`` rad of small MRPs ``(n, 3)``."""
+    size = np.sqrt(norm2(sigma))
+    ratio = np.where(size > 1e-12, 4.0 * np.arctan(size) / np.where(size > 1e-12, size, 1.0), 4.0)
+    return ratio[:, None] * sigma
+
+
+class MEKF:
+    """Attitude and gyro-bias filter of a batch with per-head FDI (module docstring).
+
+    ``step(heads, valid, gyro)`` once per control step returns ``(sigma_hat (n, 3) MRP,
+    rate_hat (n, 3) rad/s)``: the filtered attitude and the gyro reading minus the bias estimate.
+
+    Diagnostics kept for the study: ``stuck`` and ``isolated`` ``(n, 3)`` (latched per head),
+    ``head_out_step`` ``(n, 3)`` (first step a head was latched out, -1 if never),
+    ``bias_alarm_step`` ``(n,)`` (first bias-step alarm, -1 if none), ``bias_alarms`` ``(n,)``.
+    """
+
+    def __init__(self, n: int, sensors: SensorKnowledge, dt_s: float, settings: MEKFSettings) -> None:
+        self.n, self.dt, self.s = n, dt_s, settings
+        self.heads = sensors.star_tracker_heads
+        self.r_var = sensors.star_tracker_noise_rad**2
+        self.gyro_var = (settings.gyro_noise_scale * sensors.gyro_noise_rad_s) ** 2
+        self.bias0_var = sensors.gyro_bias_bound_rad_s**2 / 3.0  # a uniform prior's variance
+        self.sigma = np.zeros((n, 3))
+        self.bias = np.zeros((n, 3))
+        self.P = np.zeros((n, 6, 6))
+        self.last_gyro: np.ndarray | None = None
+        self.last_heads = np.full((n, self.heads, 3), np.nan)
+        self.last_valid = np.zeros((n, self.heads), dtype=bool)
+        self.stuck = np.zeros((n, self.heads), dtype=bool)
+        self.isolated = np.zeros((n, self.heads), dtype=bool)
+        self.fail_run = np.zeros((n, self.heads), dtype=np.int64)
+        self.pass_run = np.zeros((n, self.heads), dtype=np.int64)
+        self.common_run = np.zeros(n, dtype=np.int64)
+        self.cusum = np.zeros((n, 2, 3))
+        self.head_out_step = np.full((n, self.heads), -1)
+        self.bias_alarm_step = np.full(n, -1)
+        self.bias_alarms = np.zeros(n, dtype=np.int64)
+        self.used = np.zeros((n, self.heads), dtype=bool)
+        self.statistic_log: list[np.ndarray] = []  # the bias-step CUSUM statistic per step
+        self.k = 0
+
+    # -- the filter ---------------------------------------------------------------------------
+
+    def _start(self, heads: np.ndarray, valid: np.ndarray) -> None:
+        """First step: the attitude from the vote of the valid heads; ``P`` from the head noise
+        and the bias prior."""
+        aligned = np.stack([nearest_branch(heads[:, h], heads[:, 0]) for h in range(self.heads)], axis=1)
+        voted, count = vote(aligned, valid)
+        self.sigma = np.where((count > 0)[:, None], voted, 0.0)
+        att_var = np.where(count > 0, 4.0 * self.r_var, 1.0)
+        self.P[:, :3, :3] = att_var[:, None, None] * np.eye(3)
+        self.P[:, 3:, 3:] = self.bias0_var * np.eye(3)
+
+    def _propagate(self, gyro: np.ndarray) -> None:
+        assert self.last_gyro is not None
+        dt = self.dt
+        rate = 0.5 * (self.last_gyro + gyro) - self.bias
+        phi = rate * dt
+        self.sigma = compose(self.sigma, rotation_mrp(phi))
+        phi_tt = rotation_matrix(phi)
+        phi_tb = -dt * (np.eye(3) - 0.5 * skew(phi))
+        P = self.P
+        Ptt, Ptb, Pbb = P[:, :3, :3], P[:, :3, 3:], P[:, 3:, 3:]
+        # Phi P Phi' with Phi = [[A, B], [0, I]]
+        a_ptt = phi_tt @ Ptt + phi_tb @ np.swapaxes(Ptb, 1, 2)
+        a_ptb = phi_tt @ Ptb + phi_tb @ Pbb
+        new_tt = a_ptt @ np.swapaxes(phi_tt, 1, 2) + a_ptb @ np.swapaxes(phi_tb, 1, 2)
+        qu = self.s.bias_walk**2
+        q_tt = self.gyro_var * dt * dt + qu * dt**3 / 3.0
+        q_tb = -qu * dt * dt / 2.0
+        eye = np.eye(3)
+        out = np.empty_like(P)
+        out[:, :3, :3] = new_tt + q_tt * eye
+        out[:, :3, 3:] = a_ptb + q_tb * eye
+        out[:, 3:, :3] = np.swapaxes(out[:, :3, 3:], 1, 2)
+        out[:, 3:, 3:] = Pbb + qu * dt * eye
+        self.P = 0.5 * (out + np.swapaxes(out, 1, 2))
+
+    def _innovations(self, heads: np.ndarray) -> np.ndarray:
+        """Each head's rotation from the predicted attitude, ``(n, 3, 3)`` rad (body frame)."""
+        inverse = -self.sigma
+        return np.stack(
+            [
+                rotation_vector(compose(inverse, nearest_branch(heads[:, h], self.sigma)))
+                for h in range(self.heads)
+            ],
+            axis=1,
+        )
+
+    def _update(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
+        """Kalman update with the mean innovation of ``count`` heads (rows with ``count == 0`` are
+        left alone); returns the normalized fused innovation ``(n, 3)`` (zero where not updated)."""
+        live = count > 0
+        r = self.r_var / np.maximum(count, 1)
+        S = self.P[:, :3, :3] + r[:, None, None] * np.eye(3)
+        S_inv = inv3(S)
+        K = self.P[:, :, :3] @ S_inv  # (n, 6, 3)
+        dx = np.einsum("nij,nj->ni", K, nu_mean)
+        dx = np.where(live[:, None], dx, 0.0)
+        # Joseph form: (I - K H) P (I - K H)' + K R K'
+        IKH = np.broadcast_to(np.eye(6), K.shape[:1] + (6, 6)).copy()
+        IKH[:, :, :3] -= K
+        P_new = IKH @ self.P @ np.swapaxes(IKH, 1, 2) + r[:, None, None] * (K @ np.swapaxes(K, 1, 2))
+        P_new = 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+        self.P = np.where(live[:, None, None], P_new, self.P)
+        self.sigma = np.where(live[:, None], compose(self.sigma, rotation_mrp(dx[:, :3])), self.sigma)
+        self.bias = self.bias + dx[:, 3:]
+        scale = np.sqrt(np.diagonal(S, axis1=1, axis2=2))
+        return np.where(live[:, None], nu_mean / scale, 0.0)
+
+    # -- one control step ---------------------------------------------------------------------
+
+    def step(self, heads: np.ndarray, valid: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fold in one observation; returns ``(sigma_hat (n, 3), rate_hat (n, 3))``."""
+        s = self.s
+        if self.last_gyro is None:
+            self._start(heads, valid)
+        else:
+            self._propagate(gyro)
+        self.last_gyro = gyro.copy()
+
+        # frozen heads: a bit-identical repeat of a valid reading
+        repeat = valid & self.last_valid & np.all(heads == self.last_heads, axis=2)
+        self._latch_out(repeat & ~self.stuck)
+        self.stuck |= repeat
+        self.last_heads, self.last_valid = heads.copy(), valid.copy()
+
+        nu = self._innovations(heads)
+        S = self.P[:, :3, :3] + self.r_var * np.eye(3)
+        nis = np.einsum("nhi,nij,nhj->nh", nu, inv3(S), nu)
+        candidate = valid & ~self.stuck
+        # inter-head consistency: an outlier disagrees with every other candidate head, while at
+        # least one other candidate is no outlier (a majority against it)
+        h = self.heads
+        diff = nu[:, :, None, :] - nu[:, None, :, :]
+        pair = norm2(diff) / (2.0 * self.r_var)  # (n, h, h): chi-square, 3 dof, per pair
+        others = candidate[:, None, :] & ~np.eye(h, dtype=bool)[None]
+        closest = np.where(others, pair, np.inf).min(axis=2)
+        outlier = candidate & (closest > s.gate)
+        outlier &= (candidate & ~outlier).any(axis=1)[:, None]
+        self.fail_run = np.where(outlier, self.fail_run + 1, 0)
+        self.pass_run = np.where(
+            candidate & ~outlier, self.pass_run + 1, np.where(candidate, 0, self.pass_run)
+        )
+        isolate = ~self.isolated & (self.fail_run >= s.isolate_after)
+        self._latch_out(isolate)
+        readmit = self.isolated & (self.pass_run >= s.readmit_after)
+        self.isolated = (self.isolated | isolate) & ~readmit
+
+        used = candidate & ~self.isolated & ~outlier
+        # filter consistency: every head in use fails its gate against the prediction for a while
+        # (a gyro-bias step, the end of a long outage): the filter is off, re-open its covariance
+        common = used.any(axis=1) & ~(used & (nis <= s.gate)).any(axis=1)
+        self.common_run = np.where(common, self.common_run + 1, 0)
+        reopen = self.common_run >= s.isolate_after
+        if reopen.any():
+            spread = (norm2(nu) * used).sum(axis=1) / np.maximum(used.sum(axis=1), 1)
+            self.P[reopen, :3, :3] += spread[reopen, None, None] * np.eye(3)
+            self.P[reopen, 3:, 3:] += s.step_inflation**2 * np.eye(3)
+            self.common_run = np.where(reopen, 0, self.common_run)
+        self.used = used
+        count = used.sum(axis=1)
+        nu_mean = (nu * used[:, :, None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+        z = self._update(nu_mean, count)
+        self._bias_step_test(z, count > 0)
+        self.k += 1
+        return self.sigma, gyro - self.bias
+
+    def _latch_out(self, newly: np.ndarray) -> None:
+        self.head_out_step = np.where(newly & (self.head_out_step < 0), self.k, self.head_out_step)
+
+    def _bias_step_test(self, z: np.ndarray, live: np.ndarray) -> None:
+        """Two-sided CUSUM per axis on the normalized fused innovation; an alarm inflates the bias
+        covariance and restarts the sums."""
+        s = self.s
+        up = np.maximum(0.0, self.cusum[:, 0] + z - s.step_drift)
+        down = np.maximum(0.0, self.cusum[:, 1] - z - s.step_drift)
+        self.cusum[:, 0] = np.where(live[:, None], up, self.cusum[:, 0])
+        self.cusum[:, 1] = np.where(live[:, None], down, self.cusum[:, 1])
+        statistic = self.cusum.max(axis=(1, 2))
+        self.statistic_log.append(statistic)
+        alarm = (statistic > s.step_threshold) & live
+        if alarm.any():
+            self.P[alarm, 3:, 3:] += s.step_inflation**2 * np.eye(3)
+            self.cusum[alarm] = 0.0
+            self.bias_alarm_step = np.where(alarm & (self.bias_alarm_step < 0), self.k, self.bias_alarm_step)
+            self.bias_alarms += alarm

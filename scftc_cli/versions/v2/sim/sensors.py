@@ -1,0 +1,231 @@
+"""``scftc-v2``'s sensors: three noisy star-tracker heads, a biased noisy gyro, wheel tachometers.
+
+The sensors read the plant's true state and never change it, so every backend sees identical
+observations. Each episode's noise comes from its own stream (``WheelEpisodes.noise_seed``, keyed
+like every other draw of the cell), consumed in a fixed order: first the gyro's constant bias
+(three uniforms), then 16 standard normals per step (head 1, 2, 3 as three axes each, the gyro's
+three axes, the four tachometers). The normals are generated in blocks of steps, which gives
+exactly the numbers of one long draw, so a batch never holds more than a block of noise.
+
+A head's rotation noise is the MRP ``(sigma_st / 4) z``: the rotation vector of an MRP ``p`` is
+``4 atan(|p|) p / |p|``, which for 10 arcsec equals ``4 p`` to 1e-14 relative, so each axis gets
+``sigma_st`` of rotation noise without a transcendental function (those may round differently on
+different CPUs; the observations must not).
+
+``observe_reference`` writes the observation as plain numpy array operations (the readable
+definition); ``observe``, what every rollout calls, runs the same floating-point operations in the
+same order (those of ``mrp.compose`` included), without contraction into fused multiply-adds, as
+one numba pass over the batch: the two agree to the bit, and ``observe`` is several times faster
+on large batches (the noise draws, which both share, aside).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from scftc_cli.protocol import SensorKnowledge
+from scftc_cli.sim.mrp import compose
+from scftc_cli.sim.testbed import Plant, Sensors
+from scftc_cli.spec import BenchmarkSpec
+from scftc_cli.versions.v2.sim.faults import WheelEpisodes, sensor_code
+from scftc_cli.versions.v2.spec import V2, SensorSuite
+
+ARCSEC_TO_RAD = math.pi / (180.0 * 3600.0)
+NOISE_CHANNELS = 16
+"""Normals per episode per step: 3 heads x 3 axes, 3 gyro axes, 4 tachometers."""
+BLOCK_STEPS = 50
+
+
+def sensor_knowledge(suite: SensorSuite, dt_s: float) -> SensorKnowledge:
+    """The noise figures a controller may know, per sample and in SI units."""
+    deg = math.pi / 180.0
+    return SensorKnowledge(
+        star_tracker_heads=suite.star_tracker_heads,
+        star_tracker_noise_rad=suite.star_tracker_noise_arcsec * ARCSEC_TO_RAD,
+        gyro_noise_rad_s=suite.gyro_arw_deg_sqrt_h * deg / 60.0 / math.sqrt(dt_s),
+        gyro_bias_bound_rad_s=suite.gyro_bias_deg_h * deg / 3600.0,
+        tachometer_noise_rad_s=suite.tachometer_noise_rad_s,
+    )
+
+
+class HeadsGyroTachometers(Sensors):
+    """The sensors of a batch of ``scftc-v2`` episodes, with each episode's sensor fault from its
+    onset step on: ``st_bias`` (one head composed with a constant rotation), ``st_stuck`` (one head
+    frozen at what it reported at the onset), ``st_outage`` (every head invalid: zeros, flag 0),
+    ``gyro_bias`` (a constant step added to the gyro).
+
+    Observation ``(n, 19)``: three head MRPs (9), three validity flags (3), gyro (3) rad/s,
+    tachometers (4) rad/s.
+    """
+
+    def __init__(self, episodes: WheelEpisodes, spec: BenchmarkSpec = V2) -> None:
+        assert spec.sensors is not None
+        self.knowledge = sensor_knowledge(spec.sensors, spec.dt_s)
+        self.heads = spec.sensors.star_tracker_heads
+        n = episodes.n
+        fault = episodes.sensor_fault
+        self.onset = np.asarray(episodes.fault.onset_step)
+        kind = np.asarray(fault.kind)
+        self.biased = kind == sensor_code(spec, "st_bias")
+        self.stuck = kind == sensor_code(spec, "st_stuck")
+        self.outage = kind == sensor_code(spec, "st_outage")
+        self.gyro_step = np.where(
+            (kind == sensor_code(spec, "gyro_bias"))[:, None], fault.gyro_bias_step_rad_s, 0.0
+        )
+        self.head = np.asarray(fault.head)
+        self.head_bias = np.asarray(fault.head_bias_mrp)
+        self.frozen = np.zeros((n, 3))
+        self.streams = [
+            np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist())))
+            for seed in np.asarray(episodes.noise_seed)
+        ]
+        bound = self.knowledge.gyro_bias_bound_rad_s
+        self.gyro_bias = np.empty((n, 3))
+        for e, stream in enumerate(self.streams):
+            self.gyro_bias[e] = stream.uniform(-bound, bound, 3)
+        self.block = np.empty((n, BLOCK_STEPS, NOISE_CHANNELS))
+        self.block_start = -BLOCK_STEPS
+
+    def _noise(self, k: int) -> np.ndarray:
+        """``(n, 16)`` standard normals of step ``k`` (steps are observed in order)."""
+        if not self.block_start <= k < self.block_start + BLOCK_STEPS:
+            if k != self.block_start + BLOCK_STEPS:
+                raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
+            for e, stream in enumerate(self.streams):
+                stream.standard_normal(out=self.block[e])
+            self.block_start = k
+        return self.block[:, k - self.block_start]
+
+    def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
+        """``observe`` as numpy array operations: the readable definition, equal to the bit."""
+        states = plant.states()
+        sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
+        n = len(sigma)
+        z = self._noise(k)
+        faulted = k >= self.onset
+        out = np.empty((n, 9 + self.heads + 3 + wheels.shape[1]))
+        head_noise = (0.25 * self.knowledge.star_tracker_noise_rad) * z[:, :9]
+        for h in range(self.heads):
+            this = self.head == h
+            seen = sigma
+            biased = np.flatnonzero(faulted & self.biased & this)
+            if len(biased):
+                seen = sigma.copy()
+                seen[biased] = compose(sigma[biased], self.head_bias[biased])
+            reported = compose(seen, head_noise[:, 3 * h : 3 * h + 3])
+            stuck = self.stuck & this
+            np.copyto(self.frozen, reported, where=(stuck & (k == self.onset))[:, None])
+            reported = np.where((stuck & faulted)[:, None], self.frozen, reported)
+            valid = ~(self.outage & faulted)
+            out[:, 3 * h : 3 * h + 3] = np.where(valid[:, None], reported, 0.0)
+            out[:, 9 + h] = valid
+        g = 9 + self.heads
+        gyro_noise = self.knowledge.gyro_noise_rad_s * z[:, 9:12]
+        out[:, g : g + 3] = (
+            omega + self.gyro_bias + gyro_noise + np.where(faulted[:, None], self.gyro_step, 0.0)
+        )
+        out[:, g + 3 :] = wheels + self.knowledge.tachometer_noise_rad_s * z[:, 12:16]
+        return out
+
+    def observe(self, k: int, plant: Plant) -> np.ndarray:
+        """``(n, 19)`` observation of the plant's true state at the start of step ``k``
+        (``observe_reference``'s numbers, fused into one pass)."""
+        states = plant.states()
+        sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
+        z = self._noise(k)
+        out = np.empty((len(sigma), 9 + self.heads + 3 + wheels.shape[1]))
+        _observe_kernel(
+            k,
+            self.heads,
+            _rows(sigma),
+            _rows(omega),
+            _rows(wheels),
+            z,
+            self.onset,
+            self.biased,
+            self.stuck,
+            self.outage,
+            self.head,
+            self.head_bias,
+            self.gyro_bias,
+            self.gyro_step,
+            self.frozen,
+            0.25 * self.knowledge.star_tracker_noise_rad,
+            self.knowledge.gyro_noise_rad_s,
+            self.knowledge.tachometer_noise_rad_s,
+            out,
+        )
+        return out
+
+
+def _rows(x: np.ndarray) -> np.ndarray:
+    """``x`` as a C-contiguous float64 array (the plants' states already are: no copy)."""
+    return np.ascontiguousarray(x, dtype=np.float64)
+
+
+@numba.njit(inline="always")
+def _compose(a0, a1, a2, b0, b1, b2):
+    """``mrp.compose`` of one row, ``first = a``, ``second = b``: the same operations in the same
+    order (``norm2``/``dot`` left to right, ``np.cross(second, first)``, then the shadow switch)."""
+    a2n = a0 * a0 + a1 * a1 + a2 * a2
+    b2n = b0 * b0 + b1 * b1 + b2 * b2
+    ab = a0 * b0 + a1 * b1 + a2 * b2
+    c0 = b1 * a2 - b2 * a1
+    c1 = b2 * a0 - b0 * a2
+    c2 = b0 * a1 - b1 * a0
+    qa, qb = 1.0 - a2n, 1.0 - b2n
+    den = 1.0 + a2n * b2n - 2.0 * ab
+    s0 = ((qa * b0 + qb * a0) - 2.0 * c0) / den
+    s1 = ((qa * b1 + qb * a1) - 2.0 * c1) / den
+    s2 = ((qa * b2 + qb * a2) - 2.0 * c2) / den
+    ss = s0 * s0 + s1 * s1 + s2 * s2
+    if ss > 1.0:
+        return -s0 / ss, -s1 / ss, -s2 / ss
+    return s0, s1, s2
+
+
+@numba.njit(cache=True)
+def _observe_kernel(
+    k, heads, sigma, omega, wheels, z, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
+    frozen, head_scale, gyro_scale, tach_scale, out,
+):  # fmt: skip
+    """``observe_reference`` of every episode of step ``k`` into ``out`` ``(n, 19)``; updates
+    ``frozen``. Per head ``h``: the true attitude (composed with the head's offset where ``st_bias``
+    is in force on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen
+    and repeated from then on; an outage reports zeros and validity 0. Gyro ``((w + bias) + noise)
+    + step`` (the step is 0.0 before the onset, and added all the same, as numpy adds it);
+    tachometers ``Omega + noise``.
+    """
+    for e in range(sigma.shape[0]):
+        faulted = k >= onset[e]
+        valid = not (outage[e] and faulted)
+        t0, t1, t2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+        for h in range(heads):
+            s0, s1, s2 = t0, t1, t2
+            mine = head[e] == h
+            if faulted and biased[e] and mine:
+                s0, s1, s2 = _compose(t0, t1, t2, head_bias[e, 0], head_bias[e, 1], head_bias[e, 2])
+            j = 3 * h
+            r0, r1, r2 = _compose(
+                s0, s1, s2, head_scale * z[e, j], head_scale * z[e, j + 1], head_scale * z[e, j + 2]
+            )
+            if stuck[e] and mine:
+                if k == onset[e]:
+                    frozen[e, 0], frozen[e, 1], frozen[e, 2] = r0, r1, r2
+                if faulted:
+                    r0, r1, r2 = frozen[e, 0], frozen[e, 1], frozen[e, 2]
+            if valid:
+                out[e, j], out[e, j + 1], out[e, j + 2] = r0, r1, r2
+                out[e, 9 + h] = 1.0
+            else:
+                out[e, j], out[e, j + 1], out[e, j + 2] = 0.0, 0.0, 0.0
+                out[e, 9 + h] = 0.0
+        g = 9 + heads
+        for i in range(3):
+            step = gyro_step[e, i] if faulted else 0.0
+            out[e, g + i] = ((omega[e, i] + gyro_bias[e, i]) + gyro_scale * z[e, 9 + i]) + step
+        for i in range(wheels.shape[1]):
+            out[e, g + 3 + i] = wheels[e, i] + tach_scale * z[e, 12 + i]

@@ -1,0 +1,93 @@
+"""The shared v2 law: the fused attitude is the same bits in numba and numpy, outvotes a bad head,
+rides through an outage; the allocation makes the hub torque the demand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scftc_cli.sim.mrp import compose, shadow_switch
+from scftc_cli.versions.v2.controllers.law import (
+    AttitudeFuser,
+    allocate,
+    allocation,
+    friction_nm,
+    fuse_reference,
+    split_observation,
+)
+from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
+
+WHEELS = public_context(1).wheels
+
+
+def _random_step(rng: np.random.Generator, n: int):
+    sigma = shadow_switch(rng.uniform(-1.2, 1.2, (n, 3)))
+    heads = np.stack([compose(sigma, rng.normal(0, 1e-4, (n, 3))) for _ in range(3)], axis=1)
+    valid = rng.random((n, 3)) < 0.7
+    heads = np.where(valid[:, :, None], heads, 0.0)
+    return heads, valid, rng.normal(0, 0.05, (n, 3))
+
+
+def test_the_numba_fuser_is_the_numpy_reference_bit_for_bit():
+    rng = np.random.default_rng(3)
+    n = 2000
+    fuser = AttitudeFuser(n)
+    sigma, last = np.zeros((n, 3)), None
+    for _ in range(30):
+        heads, valid, gyro = _random_step(rng, n)
+        # heads near the shadow-set switch (|sigma| ~ 1) test the branch alignment
+        heads[:50] = shadow_switch(
+            heads[:50] / np.linalg.norm(heads[:50], axis=-1, keepdims=True).clip(1e-9) * 1.0000001
+        )
+        got = fuser.update(heads, valid, gyro, 0.5)
+        sigma = fuse_reference(sigma, heads, valid, gyro, last, 0.5)
+        last = gyro
+        np.testing.assert_array_equal(got, sigma)
+
+
+def test_the_fuser_on_benchmark_observations_equals_the_reference():
+    episodes = TESTBED.draw("test", "sign", "st_outage", n_faults=4, n_seeds=3)
+    plant, sensors = TESTBED.plant(episodes), TESTBED.sensors(episodes)
+    fuser, sigma, last = AttitudeFuser(episodes.n), np.zeros((episodes.n, 3)), None
+    for k in range(150):
+        heads, valid, gyro, _ = split_observation(sensors.observe(k, plant))
+        got = fuser.update(heads, valid, gyro, 0.5)
+        sigma = fuse_reference(sigma, heads, valid, gyro, last, 0.5)
+        last = gyro
+        np.testing.assert_array_equal(got, sigma)
+        plant.step(k, np.zeros((episodes.n, 4)))
+
+
+def test_a_bad_head_is_outvoted_and_an_outage_is_flown_on_the_gyro():
+    n = 1
+    truth = np.array([[0.1, -0.05, 0.02]])
+    bad = np.array([[0.3, 0.3, 0.3]])
+    fuser = AttitudeFuser(n)
+    heads = np.stack([truth, bad, truth + 1e-6], axis=1)
+    np.testing.assert_allclose(
+        fuser.update(heads, np.ones((n, 3), bool), np.zeros((n, 3)), 0.5), truth, atol=1e-6
+    )
+    rate = np.array([[0.01, 0.0, 0.0]])
+    for _ in range(20):  # the gyro's trapezoid: 0.005 rad over the first step, then 0.005 rad per step
+        sigma = fuser.update(np.zeros((n, 3, 3)), np.zeros((n, 3), bool), rate, 0.5)
+    angle = 0.5 * 0.01 * 0.5 + 19 * 0.01 * 0.5  # rotations about one body axis add up
+    expected = compose(truth, np.array([[np.tan(angle / 4), 0.0, 0.0]]))
+    np.testing.assert_allclose(sigma, expected, atol=2e-6)
+
+
+@pytest.mark.parametrize("dead", [None, 2])
+def test_the_allocation_makes_the_hub_torque_the_demand(dead: int | None):
+    rng = np.random.default_rng(5)
+    n = 64
+    gain = rng.uniform(0.4, 1.8, (n, 4)) * np.where(rng.random((n, 4)) < 0.3, -1.0, 1.0)
+    if dead is not None:
+        gain[:, dead] = 0.0
+    bias = rng.uniform(-0.2, 0.2, (n, 4))
+    speed = rng.uniform(-200, 200, (n, 4))
+    friction = friction_nm(speed, WHEELS.coulomb_nm * 3.0, WHEELS)
+    demand = rng.uniform(-0.02, 0.02, (n, 3))
+    a = allocate(demand, allocation(gain, WHEELS), gain, friction, bias, WHEELS)
+    motor = (gain * a + bias) * WHEELS.u_max_nm
+    motor = np.where(gain == 0.0, 0.0, motor)  # a dead wheel applies nothing (no offset in `loss`)
+    hub = -(motor + friction) @ WHEELS.spin_axes
+    np.testing.assert_allclose(hub, demand, atol=1e-12)
