@@ -4,8 +4,8 @@ held-out cells, and summarised by seed, mean and range."""
 from __future__ import annotations
 
 import shutil
-from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 from scftc_cli.evaluate import Cell
 from scftc_cli.registry import controller_spec
@@ -21,7 +21,14 @@ def test_seeds_beside_the_committed_weights_are_flown_and_summarised(tmp_path: P
     folder = tmp_path / "seeds" / "rma_student"
     folder.mkdir(parents=True)
     shutil.copy(committed, folder / "seed3.npz")  # the same weights under another seed's name
-    moved = replace(entry, artifacts=(str(tmp_path / "rma_student.npz"),))
+    moved = SimpleNamespace(  # the same controller, its committed weights copied to tmp_path
+        name=entry.name,
+        family=entry.family,
+        artifacts=entry.artifacts,
+        artifact_paths=lambda: [tmp_path / "rma_student.npz"],
+        load=entry.load,
+        make=entry.make,
+    )
     assert sorted(seed_artifacts(moved)) == [0, 3]
     assert seed_artifacts(controller_spec("pd")) == {}  # not learned: no seeds
     spread = seed_spread(moved, V1, [Cell("test", "sign"), Cell("test", "gain_bias")])
