@@ -66,7 +66,9 @@ def test_a_submission_of_the_toy_flies_through_the_sandbox(toy: str, tmp_path: P
     out = _ok("submit", str(source), "--benchmark", toy, "--dry-run")
     assert "dry run: every check passed" in out
     assert "public draw:  flip" in out
-    wrong = runner.invoke(app, ["submit", str(source), "--dry-run"])  # the default version
+    inferred = _ok("submit", str(source), "--dry-run")  # the version comes from the manifest
+    assert "public draw:  flip" in inferred
+    wrong = runner.invoke(app, ["submit", str(source), "--benchmark", "scftc-v1", "--dry-run"])
     assert wrong.exit_code == 2 and f"flies {toy}" in wrong.stderr
 
 
