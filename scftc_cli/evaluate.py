@@ -106,10 +106,13 @@ def evaluate_cell(
 ) -> CellRun:
     """Fly the controller of ``make`` through one cell's pinned (or, with ``salt``, sealed)
     episodes and score it."""
-    episodes = testbed(spec.version).draw(cell.split, cell.fault_class, cell.sensor, n_faults, n_seeds, salt)
+    bed = testbed(spec.version)
+    episodes = bed.draw(cell.split, cell.fault_class, cell.sensor, n_faults, n_seeds, salt)
     flown = rollout(make(cell), episodes, backend=backend, progress=progress)
-    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index)
-    result = score_cell(outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence)
+    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, bed.truth(episodes))
+    result = score_cell(
+        outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
+    )
     return CellRun(cell, result, outcomes, episodes)
 
 
@@ -186,7 +189,9 @@ def _evaluate_on_cluster(
     runs = []
     for i, cell in enumerate(cells):
         merged = EpisodeOutcomes.concat(outcomes[i * per_cell : (i + 1) * per_cell])
-        result = score_cell(merged, cell.split, cell.fault_class, cell.sensor, spec.confidence)
+        result = score_cell(
+            merged, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
+        )
         runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt)))
     return runs
 

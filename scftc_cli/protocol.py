@@ -87,6 +87,8 @@ class Context:
         tau_max_nm: body-torque actuators: torque per body axis at command 1.
         wheels: reaction-wheel actuators: their constants.
         sensors: noisy sensors: their noise figures.
+        health_units: the units a controller may report the health of, in order (``health()``);
+            empty where the version scores no diagnosis.
         fault: the true fault (a version's fault record), handed only to privileged controllers.
     """
 
@@ -99,6 +101,7 @@ class Context:
     tau_max_nm: float | None = None
     wheels: WheelKnowledge | None = None
     sensors: SensorKnowledge | None = None
+    health_units: tuple[str, ...] = ()
     fault: Any = None
 
     def public(self) -> dict[str, Any]:
@@ -114,7 +117,8 @@ class Context:
 
 def _rebuild(cls: type, doc: dict[str, Any]) -> Any:
     """An instance of dataclass ``cls`` from ``doc``: a field whose type names a dataclass is
-    rebuilt from its dict the same way; a list becomes a float64 array."""
+    rebuilt from its dict the same way; a list of names becomes a tuple, any other list a float64
+    array."""
     hints = typing.get_type_hints(cls)
     known = {f.name for f in fields(cls)}
     kwargs: dict[str, Any] = {}
@@ -131,14 +135,16 @@ def _rebuild(cls: type, doc: dict[str, Any]) -> Any:
 
 
 def _plain(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
+    if isinstance(value, np.ndarray | tuple):
+        return list(value) if isinstance(value, tuple) else value.tolist()
     if is_dataclass(value) and not isinstance(value, type):
         return {f.name: _plain(getattr(value, f.name)) for f in fields(value)}
     return value
 
 
 def _array(value: Any) -> Any:
+    if isinstance(value, list) and all(isinstance(v, str) for v in value):  # names; [] is none
+        return tuple(value)
     return np.asarray(value, dtype=float) if isinstance(value, list) else value
 
 
@@ -154,6 +160,13 @@ class Controller(ABC):
     @abstractmethod
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Commands ``(n, action_dim)`` in ``[-1, 1]`` for observations ``(n, obs_dim)``."""
+
+    def health(self) -> np.ndarray | None:
+        """Optional: after each ``act``, the health the controller believes each unit of
+        ``context.health_units`` has, ``(n, units)`` integers: 0 healthy, 1 degraded, 2 failed.
+        ``None`` (the default) reports nothing, scored as "never alarms". Only versions whose spec
+        has a ``diagnosis`` ask for it."""
+        return None
 
 
 class Progress:

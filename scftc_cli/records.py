@@ -95,6 +95,37 @@ class FinalError(BaseModel):
         return data
 
 
+class DiagnosisStats(BaseModel):
+    """What a controller's fault detection said over a cell, against the truth (versions that
+    score a diagnosis). Counts, so that rates and intervals can be formed and pooled.
+
+    Attributes:
+        faulted: episodes with a fault; ``detected`` of them raised an alarm at or after the onset,
+            ``delay_mean_s``/``delay_median_s`` after it (``None`` when none was detected).
+        isolated: faulted episodes whose last report names exactly the faulted units (any
+            severity); ``severity_right``: and gives each its right severity.
+        healthy_episodes: episodes with healthy flight (all, unless a fault starts at step 0);
+            ``false_alarm_episodes`` of them raised an alarm before any fault.
+        healthy_hours, false_alarms: flight time before the onset (or the whole episode) and the
+            alarms raised in it (rising edges): ``false_alarms / healthy_hours`` is the rate per hour.
+    """
+
+    faulted: int = Field(ge=0)
+    detected: int = Field(ge=0)
+    delay_mean_s: float | None = None
+    delay_median_s: float | None = None
+    isolated: int = Field(ge=0)
+    severity_right: int = Field(ge=0)
+    healthy_episodes: int = Field(ge=0)
+    false_alarm_episodes: int = Field(ge=0)
+    healthy_hours: float = Field(ge=0)
+    false_alarms: int = Field(ge=0)
+
+    @property
+    def false_alarms_per_hour(self) -> float:
+        return self.false_alarms / self.healthy_hours if self.healthy_hours else 0.0
+
+
 class CellResult(BaseModel):
     """One cell (controller, split, class, sensor fault) scored on the true state."""
 
@@ -108,6 +139,18 @@ class CellResult(BaseModel):
     operational: GateStat
     touch_once: GateStat
     final_error_deg: FinalError
+    window_settled: list[int] | None = Field(
+        default=None, description="Settled episodes in each pointing window (versions with several)."
+    )
+    diagnosis: DiagnosisStats | None = None
+
+    @model_serializer(mode="wrap")
+    def _omit_absent(self, handler: SerializerFunctionWrapHandler) -> dict:
+        data = handler(self)
+        for name in ("window_settled", "diagnosis"):
+            if getattr(self, name) is None:
+                data.pop(name, None)
+        return data
 
     @property
     def key(self) -> tuple[str, str, str | None]:
@@ -148,6 +191,28 @@ class EvalResult(BaseModel):
 
 
 @dataclass(frozen=True)
+class EpisodeDiagnosis:
+    """Per-episode diagnosis of a batch, on a version that scores one: what the controller's health
+    reports said against the truth (``sim.testbed.DiagnosisTruth``), all ``(n,)`` but the codes.
+
+    Attributes:
+        onset_step: the first faulty step (``steps`` for an episode with no fault).
+        first_alarm_step: the first step any unit was reported not healthy (-1: never).
+        delay_steps: steps from the onset to the first alarm at or after it (-1: never detected, or
+            no fault).
+        false_alarms: alarms raised before the onset (rising edges).
+        final_codes, truth_codes: ``(n, units)`` the last report and the truth.
+    """
+
+    onset_step: np.ndarray
+    first_alarm_step: np.ndarray
+    delay_steps: np.ndarray
+    false_alarms: np.ndarray
+    final_codes: np.ndarray
+    truth_codes: np.ndarray
+
+
+@dataclass(frozen=True)
 class EpisodeOutcomes:
     """Per-episode outcomes of a batch, all ``(n,)``: the three gates (bool), the final true
     pointing error (deg), the settling time (s; NaN where not settled at the end), the largest
@@ -161,6 +226,8 @@ class EpisodeOutcomes:
     settling_time_s: np.ndarray
     dwell_max_error_deg: np.ndarray
     fault_index: np.ndarray | None = None
+    window_settled: np.ndarray | None = None
+    diagnosis: EpisodeDiagnosis | None = None
 
     @property
     def n(self) -> int:
@@ -174,7 +241,17 @@ class EpisodeOutcomes:
         joined: dict = {}
         for f in fields(cls):
             values = [getattr(p, f.name) for p in parts]
-            joined[f.name] = None if any(v is None for v in values) else np.concatenate(values)
+            if any(v is None for v in values):
+                joined[f.name] = None
+            elif isinstance(values[0], EpisodeDiagnosis):
+                joined[f.name] = EpisodeDiagnosis(
+                    **{
+                        g.name: np.concatenate([getattr(v, g.name) for v in values])
+                        for g in fields(EpisodeDiagnosis)
+                    }
+                )
+            else:
+                joined[f.name] = np.concatenate(values)
         return cls(**joined)
 
 

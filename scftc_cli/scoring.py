@@ -17,8 +17,16 @@ from statistics import NormalDist
 
 import numpy as np
 
-from scftc_cli.records import CellResult, EpisodeOutcomes, FinalError, GateStat
-from scftc_cli.sim.rollout import Rollout
+from scftc_cli.records import (
+    CellResult,
+    DiagnosisStats,
+    EpisodeDiagnosis,
+    EpisodeOutcomes,
+    FinalError,
+    GateStat,
+)
+from scftc_cli.sim.rollout import HealthTrace, Rollout
+from scftc_cli.sim.testbed import DiagnosisTruth
 from scftc_cli.spec import GATES, GateSpec
 from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts, profile_counts
 
@@ -70,25 +78,84 @@ def gate_stat(
 
 
 def episode_outcomes(
-    rollout: Rollout, gates: GateSpec, fault_index: np.ndarray | None = None
+    rollout: Rollout,
+    gates: GateSpec,
+    fault_index: np.ndarray | None = None,
+    truth: DiagnosisTruth | None = None,
 ) -> EpisodeOutcomes:
     """Per-episode gate outcomes and errors of a rollout (what a paired comparison needs), with
-    each episode's fault (``Episodes.fault_index``) where given."""
+    each episode's fault (``Episodes.fault_index``) where given, each window's settled gate where
+    the version flies several, and the diagnosis where the version scores one (``truth``)."""
     outcomes = gate_outcomes(rollout, gates)
+    windows = rollout.window_dwell_max_deg
     return EpisodeOutcomes(
         **{gate: outcomes[gate] for gate in GATES},
         final_error_deg=rollout.final_error_deg,
         settling_time_s=rollout.settling_time_s,
         dwell_max_error_deg=rollout.dwell_max_error_deg,
         fault_index=None if fault_index is None else np.asarray(fault_index),
+        window_settled=None if windows is None else windows <= gates.settled_deg,
+        diagnosis=None if truth is None else episode_diagnosis(rollout.health, truth),
+    )
+
+
+def episode_diagnosis(trace: HealthTrace | None, truth: DiagnosisTruth) -> EpisodeDiagnosis:
+    """Each episode's diagnosis against ``truth``; a controller that reported nothing (``trace``
+    ``None``) never alarms and reports every unit healthy."""
+    n, units = truth.codes.shape
+    if trace is None:
+        never = np.full(n, -1)
+        return EpisodeDiagnosis(
+            truth.onset_step, never, never, np.zeros(n, int), np.zeros((n, units), int), truth.codes
+        )
+    detected = trace.first_alarm_after_onset >= 0
+    delay = np.where(detected, trace.first_alarm_after_onset - truth.onset_step, -1)
+    return EpisodeDiagnosis(
+        truth.onset_step, trace.first_alarm_step, delay, trace.false_alarms, trace.final_codes, truth.codes
+    )
+
+
+def diagnosis_stats(d: EpisodeDiagnosis, steps: int, dt_s: float) -> DiagnosisStats:
+    """A cell's diagnosis counts from its episodes' (``DiagnosisStats``).
+
+    An episode is faulted when its onset falls inside the episode; its detection delay is measured
+    from the onset to the first alarm at or after it (an alarm raised earlier that is still on at
+    the onset counts at the onset: delay 0). Healthy flight is the time before the onset (the whole
+    episode without a fault); a false-alarm episode raised an alarm in it.
+    """
+    faulted = d.onset_step < steps
+    detected = faulted & (d.delay_steps >= 0)
+    delays = d.delay_steps[detected] * dt_s
+    healthy_steps = np.minimum(d.onset_step, steps)
+    false_episode = (d.first_alarm_step >= 0) & (d.first_alarm_step < healthy_steps)
+    isolated = faulted & np.all((d.final_codes > 0) == (d.truth_codes > 0), axis=1)
+    exact = faulted & np.all(d.final_codes == d.truth_codes, axis=1)
+    return DiagnosisStats(
+        faulted=int(faulted.sum()),
+        detected=int(detected.sum()),
+        delay_mean_s=float(delays.mean()) if delays.size else None,
+        delay_median_s=float(np.median(delays)) if delays.size else None,
+        isolated=int(isolated.sum()),
+        severity_right=int(exact.sum()),
+        healthy_episodes=int((healthy_steps > 0).sum()),
+        false_alarm_episodes=int(false_episode.sum()),
+        healthy_hours=float(healthy_steps.sum() * dt_s / 3600.0),
+        false_alarms=int(d.false_alarms.sum()),
     )
 
 
 def score_cell(
-    outcomes: EpisodeOutcomes, split: str, fault_class: str, sensor: str | None, confidence: float = 0.95
+    outcomes: EpisodeOutcomes,
+    split: str,
+    fault_class: str,
+    sensor: str | None,
+    confidence: float = 0.95,
+    steps: int = 0,
+    dt_s: float = 0.0,
 ) -> CellResult:
     """The scored cell of a batch's per-episode outcomes (with the by-fault statistics where the
-    outcomes know each episode's fault)."""
+    outcomes know each episode's fault, each window's settled count where there are several, and
+    the diagnosis where it is scored: ``steps`` and ``dt_s`` then say the episode's length)."""
     return CellResult(
         split=split,
         fault_class=fault_class,
@@ -100,4 +167,8 @@ def score_cell(
             mean=float(np.mean(outcomes.final_error_deg)),
             profile=profile_counts(outcomes.final_error_deg).tolist(),
         ),
+        window_settled=None
+        if outcomes.window_settled is None
+        else outcomes.window_settled.sum(axis=0).tolist(),
+        diagnosis=None if outcomes.diagnosis is None else diagnosis_stats(outcomes.diagnosis, steps, dt_s),
     )

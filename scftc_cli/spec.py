@@ -205,6 +205,23 @@ SplitT = TypeVar("SplitT", bound=SplitSpec)
 SensorsT = TypeVar("SensorsT", bound=SensorSpec)
 
 
+class DiagnosisSpec(_Frozen):
+    """A version that scores what a controller's fault detection says (``Controller.health``).
+
+    Attributes:
+        units: the actuators and sensors whose health a controller may report, in order; each step
+            one code per unit: 0 healthy, 1 degraded, 2 failed.
+        false_alarm_budget: the largest fraction of healthy episodes (nominal ones, or before the
+            onset) in which an entry may raise an alarm before the board flags it.
+    """
+
+    units: tuple[str, ...]
+    false_alarm_budget: float = 0.01
+
+
+HEALTH_CODES = {0: "healthy", 1: "degraded", 2: "failed"}
+
+
 class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
     """Everything that defines one benchmark version, as data (generic in its plant, split and
     sensor models, so that each version's code sees its own types).
@@ -220,6 +237,7 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
         sensor_classes: the sensor fault classes, evaluated on top of ``sensor_base_class`` faults.
         ranked_classes: the classes whose mean settled rate ranks deployable entries.
         n_faults, n_seeds: a full cell is ``n_faults x n_seeds`` episodes.
+        diagnosis: what a controller's fault detection is scored on (``None``: not scored).
     """
 
     version: str
@@ -237,6 +255,7 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
     n_faults: int = 50
     n_seeds: int = 10
     confidence: float = 0.95
+    diagnosis: DiagnosisSpec | None = None
 
     @property
     def fault_classes(self) -> tuple[str, ...]:

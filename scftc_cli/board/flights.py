@@ -141,8 +141,9 @@ def score_builtin(entry: ControllerSpec, scoring: Scoring, draws: Draws) -> Flow
 
 # ------------------------------------------------------------------------------------ submissions
 class CommandDigest(Controller):
-    """A pass-through that hashes every command a controller returns, one SHA-256 per cell
-    (``reset`` starts the next): two flights agree exactly when their digests do."""
+    """A pass-through that hashes every command a controller returns, and every health report
+    where the version asks for one, one SHA-256 per cell (``reset`` starts the next): two flights
+    agree exactly when their digests do."""
 
     privileged = False
 
@@ -161,6 +162,13 @@ class CommandDigest(Controller):
         self._hash.update(np.ascontiguousarray(commands, dtype="<f8").tobytes())
         self.digests[-1] = self._hash.hexdigest()
         return commands
+
+    def health(self) -> np.ndarray | None:
+        codes = self.inner.health()
+        if codes is not None:
+            self._hash.update(b"health" + np.ascontiguousarray(codes, dtype="<i8").tobytes())
+            self.digests[-1] = self._hash.hexdigest()
+        return codes
 
 
 def budget(scoring: Scoring) -> float:

@@ -69,7 +69,7 @@ def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
     make, cleanup = task.ref.factory()
     try:
         flown = rollout(make(), episodes, backend=task.backend)
-        return episode_outcomes(flown, bed.spec.gates, episodes.fault_index)
+        return episode_outcomes(flown, bed.spec.gates, episodes.fault_index, bed.truth(episodes))
     finally:
         cleanup()
 

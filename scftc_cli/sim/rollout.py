@@ -15,7 +15,26 @@ from scftc_cli.errors import ControllerError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within
-from scftc_cli.sim.testbed import testbed
+from scftc_cli.sim.testbed import Testbed, testbed
+
+
+@dataclass(frozen=True)
+class HealthTrace:
+    """What a controller's health reports (``Controller.health``) said over a batch, on the fly.
+
+    Attributes:
+        first_alarm_step: ``(n,)`` the first step after which any unit was reported not healthy
+            (-1: never).
+        first_alarm_after_onset: ``(n,)`` the first such step at or after the onset (-1: never).
+        false_alarms: ``(n,)`` alarms raised before the onset: steps whose report turns from all
+            healthy to not (rising edges), so one long alarm counts once.
+        final_codes: ``(n, units)`` the last report.
+    """
+
+    first_alarm_step: np.ndarray
+    first_alarm_after_onset: np.ndarray
+    false_alarms: np.ndarray
+    final_codes: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -24,10 +43,15 @@ class Rollout:
 
     Attributes:
         final_error_deg: ``(n,)`` pointing error after the last step.
-        dwell_max_error_deg: ``(n,)`` largest error over the final dwell window.
+        dwell_max_error_deg: ``(n,)`` largest error over the final dwell of every pointing window
+            (``Testbed.windows``; one window, the whole episode, on most versions).
         min_error_deg: ``(n,)`` smallest error over steps 1..steps.
-        settling_time_s: ``(n,)`` time of the first sample after which the error never again exceeds
-            the settled tolerance; NaN where the last sample exceeds it.
+        settling_time_s: ``(n,)`` time, from the start of the last window, of the first sample after
+            which the error never again exceeds the settled tolerance; NaN where the last sample
+            exceeds it.
+        window_dwell_max_deg: ``(n, windows)`` the dwell maximum of each window.
+        health: what the controller's health reports said, where the version scores a diagnosis
+            and the controller reports one.
         error_deg: ``(n, steps)`` full error history, only when trajectories were recorded.
         states: name -> ``(n, steps + 1, d)`` true states incl. the initial one, likewise.
         commands: ``(n, steps, action_dim)`` clipped commands, likewise.
@@ -37,6 +61,8 @@ class Rollout:
     dwell_max_error_deg: np.ndarray
     min_error_deg: np.ndarray
     settling_time_s: np.ndarray
+    window_dwell_max_deg: np.ndarray | None = None
+    health: HealthTrace | None = None
     error_deg: np.ndarray | None = None
     states: dict[str, np.ndarray] = field(default_factory=dict)
     commands: np.ndarray | None = None
@@ -65,6 +91,20 @@ def validate_commands(commands: object, n: int, width: int) -> np.ndarray:
     return commands
 
 
+def validate_health(codes: object, n: int, units: int) -> np.ndarray:
+    """Accept only an integer array ``(n, units)`` of codes 0, 1, 2 from ``Controller.health``."""
+    if not isinstance(codes, np.ndarray) or codes.shape != (n, units) or codes.dtype.kind not in "iub":
+        got = (
+            f"shape {codes.shape}, dtype {codes.dtype}"
+            if isinstance(codes, np.ndarray)
+            else type(codes).__name__
+        )
+        raise ControllerError(f"health() must return None or integers of shape ({n}, {units}), got {got}")
+    if codes.size and (codes.min() < 0 or codes.max() > 2):
+        raise ControllerError("health() codes must be 0 (healthy), 1 (degraded) or 2 (failed)")
+    return codes
+
+
 def rollout(
     controller: Controller,
     episodes: Episodes,
@@ -90,11 +130,16 @@ def rollout(
     controller.reset(n, bed.context(episodes, controller.privileged))
 
     # Gates are tracked on |sigma|^2 and converted once at the end: the angle is monotone in it.
-    dwell_start = steps - spec.gates.dwell_steps
+    ends = tuple(min(end, steps) for end in bed.windows() if end - spec.gates.dwell_steps < steps) or (steps,)
+    last_start = ends[-2] if len(ends) > 1 else 0
+    window_of = np.full(steps, -1)  # step -> the window whose final dwell it is in
+    for w, end in enumerate(ends):
+        window_of[max(end - spec.gates.dwell_steps, 0) : end] = w
     settled_norm2 = largest_norm2_within(spec.gates.settled_deg)
-    dwell_max = np.zeros(n)
+    window_max = np.zeros((n, len(ends)))
     min_norm2 = np.full(n, np.inf)
-    last_outside = np.full(n, -1)  # last step whose error exceeded the settled tolerance
+    last_outside = np.full(n, last_start - 1)  # last step whose error exceeded the settled tolerance
+    diagnosis = _HealthAccumulator.start(bed, episodes, controller, n)
     if record:
         errors, commands = np.empty((n, steps)), np.empty((n, steps, spec.action_dim))
         history = {name: np.empty((n, steps + 1, value.shape[1])) for name, value in plant.states().items()}
@@ -104,24 +149,79 @@ def rollout(
     for k in range(steps):
         obs = sensors.observe(k, plant)
         command = np.clip(validate_commands(controller.act(obs), n, spec.action_dim), -1.0, 1.0)
+        if diagnosis is not None:
+            diagnosis.add(k, controller)
         sigma_norm2 = plant.step(k, command)
         np.minimum(min_norm2, sigma_norm2, out=min_norm2)
-        np.copyto(last_outside, k, where=sigma_norm2 > settled_norm2)
-        if k >= dwell_start:
-            np.maximum(dwell_max, sigma_norm2, out=dwell_max)
+        if k >= last_start:
+            np.copyto(last_outside, k, where=sigma_norm2 > settled_norm2)
+        if window_of[k] >= 0:
+            column = window_max[:, window_of[k]]
+            np.maximum(column, sigma_norm2, out=column)
         if record:
             errors[:, k], commands[:, k] = angle_deg_from_norm2(sigma_norm2), command
             for name, value in plant.states().items():
                 history[name][:, k + 1] = value
         progress.advance(1)
     # sample k (after step k) is at time (k + 1) dt; the error stays within from the next sample on
-    settling = np.where(last_outside < steps - 1, (last_outside + 2) * spec.dt_s, np.nan)
+    settling = np.where(last_outside < steps - 1, (last_outside + 2 - last_start) * spec.dt_s, np.nan)
     stats = (
         angle_deg_from_norm2(sigma_norm2),
-        angle_deg_from_norm2(dwell_max),
+        angle_deg_from_norm2(window_max.max(axis=1)),
         angle_deg_from_norm2(min_norm2),
         settling,
+        angle_deg_from_norm2(window_max) if len(ends) > 1 else None,
+        diagnosis.trace() if diagnosis is not None else None,
     )
     if not record:
         return Rollout(*stats)
     return Rollout(*stats, error_deg=errors, states=history, commands=commands)
+
+
+@dataclass
+class _HealthAccumulator:
+    """Gathers a controller's health reports step by step (``HealthTrace``)."""
+
+    onset: np.ndarray
+    units: int
+    first: np.ndarray
+    first_after: np.ndarray
+    false_alarms: np.ndarray
+    alarmed: np.ndarray
+    codes: np.ndarray
+
+    @classmethod
+    def start(
+        cls, bed: Testbed, episodes: Episodes, controller: Controller, n: int
+    ) -> _HealthAccumulator | None:
+        """An accumulator where the version scores a diagnosis (``None`` elsewhere)."""
+        if bed.spec.diagnosis is None:
+            return None
+        units = len(bed.spec.diagnosis.units)
+        onset = bed.diagnosis_truth(episodes).onset_step
+        minus = lambda: np.full(n, -1)  # noqa: E731
+        return cls(
+            onset,
+            units,
+            minus(),
+            minus(),
+            np.zeros(n, dtype=int),
+            np.zeros(n, bool),
+            np.zeros((n, units), int),
+        )
+
+    def add(self, k: int, controller: Controller) -> None:
+        report = getattr(controller, "health", None)
+        codes = report() if callable(report) else None
+        if codes is None:
+            self.codes[:] = 0
+        else:
+            self.codes = validate_health(codes, len(self.onset), self.units).astype(int)
+        alarm: np.ndarray = np.any(self.codes, axis=1)
+        np.copyto(self.first, k, where=alarm & (self.first < 0))
+        np.copyto(self.first_after, k, where=alarm & (self.first_after < 0) & (k >= self.onset))
+        self.false_alarms += alarm & ~self.alarmed & (k < self.onset)
+        self.alarmed = alarm
+
+    def trace(self) -> HealthTrace:
+        return HealthTrace(self.first, self.first_after, self.false_alarms, self.codes.copy())

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -128,6 +129,36 @@ class Testbed(ABC):
     @abstractmethod
     def context(self, episodes: Episodes, privileged: bool) -> Context:
         """What a controller may know; the true fault only if ``privileged``."""
+
+    def windows(self) -> tuple[int, ...]:
+        """The steps after which each pointing window ends, in order (the last is ``spec.steps``):
+        the settled and operational gates hold the final ``dwell_steps`` of every window to their
+        threshold. One window, the whole episode, unless the version flies a sequence of targets."""
+        return (self.spec.steps,)
+
+    def truth(self, episodes: Episodes) -> DiagnosisTruth | None:
+        """``diagnosis_truth`` where the version scores a diagnosis, else ``None``."""
+        return self.diagnosis_truth(episodes) if self.spec.diagnosis is not None else None
+
+    def diagnosis_truth(self, episodes: Episodes) -> DiagnosisTruth:
+        """What a perfect fault detector would report on ``episodes`` (versions whose spec scores
+        a diagnosis implement it)."""
+        raise NotImplementedError(f"{self.spec.version} scores no diagnosis")
+
+
+@dataclass(frozen=True)
+class DiagnosisTruth:
+    """The truth a diagnosis is scored against.
+
+    Attributes:
+        onset_step: ``(n,)`` the first faulty step of each episode; ``steps`` (past the end) for an
+            episode without any fault.
+        codes: ``(n, units)`` the health of each unit from the onset on (0 healthy, 1 degraded, 2
+            failed).
+    """
+
+    onset_step: np.ndarray
+    codes: np.ndarray
 
 
 def testbed(version: str) -> Testbed:

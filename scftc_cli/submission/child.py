@@ -232,6 +232,9 @@ def _serve(controller: Any, fd_in: int, fd_out: int, source: str) -> None:  # pr
                 send(fd_out, {"ok": True})
                 continue
             out = controller.act(obs)
+            units = int(request.get("health", 0))
+            report = getattr(controller, "health", None)
+            codes = report() if units and callable(report) else None
         except BaseException as exc:
             send(fd_out, _failure(exc, source))
             return
@@ -242,6 +245,22 @@ def _serve(controller: Any, fd_in: int, fd_out: int, source: str) -> None:  # pr
         payload = b""
         if out.dtype.str in FLOAT_DTYPES and out.ndim == 2 and out.shape[0] == n and out.shape[1] <= 16:
             payload = np.ascontiguousarray(out).tobytes()
+        if codes is not None:
+            if not (
+                isinstance(codes, np.ndarray) and codes.shape == (n, units) and codes.dtype.kind in "iub"
+            ):
+                got = f"{getattr(codes, 'shape', type(codes).__name__)}"
+                send(
+                    fd_out,
+                    {
+                        "ok": False,
+                        "kind": "load",
+                        "error": f"health() must return None or integers of shape ({n}, {units}), got {got}",
+                    },
+                )
+                return
+            header["health"] = True
+            payload += np.clip(codes, -1, 3).astype(np.int8).tobytes()
         send(fd_out, header, payload)
 
 

@@ -74,6 +74,15 @@ class LocalController(Controller):
         except Exception as err:
             raise self._fail("act()", err) from None
 
+    def health(self) -> np.ndarray | None:
+        report = getattr(self.inner, "health", None)
+        if report is None:
+            return None
+        try:
+            return report()
+        except Exception as err:
+            raise self._fail("health()", err) from None
+
 
 def _frames(tb: types.TracebackType | None) -> list[types.TracebackType]:
     out = []

@@ -135,6 +135,8 @@ class Sandbox:
         self.name = one_line(self.filename, 120)
         self.phase = "starting"
         self.action_dim = 3
+        self.health_units = 0  # units whose health the version asks for after every act (0: none)
+        self.last_health: np.ndarray | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------
     def __enter__(self) -> Sandbox:
@@ -256,6 +258,7 @@ class Sandbox:
         """Start ``context.n`` episodes in the child; it is sent the context's public part only."""
         self.phase = f"reset() for {where}"
         self.action_dim = context.action_dim
+        self.health_units = len(context.health_units)
         request = {"op": "reset", "n": int(context.n), "context": context.public()}
         deadline = self._until(self.limits.step_timeout_s)
         self._new_step()
@@ -269,7 +272,8 @@ class Sandbox:
         deadline = self._until(self.limits.step_timeout_s)
         self._new_step()
         payload = np.ascontiguousarray(obs, dtype="<f8").tobytes()
-        self._write(frame({"op": "act", "n": int(n), "width": int(width)}) + payload, deadline)
+        request = {"op": "act", "n": int(n), "width": int(width), "health": self.health_units}
+        self._write(frame(request) + payload, deadline)
         header = self._recv_ok(deadline, self.phase)
         kind = header.get("type")
         if kind != "ndarray":
@@ -286,6 +290,12 @@ class Sandbox:
         commands = np.frombuffer(raw, dtype=FLOAT_DTYPES[dtype]).reshape(n, m).astype(np.float64)
         if not np.all(np.isfinite(commands)):
             raise self._reject("act() returned NaN or inf commands; return finite values in [-1, 1]")
+        self.last_health = None
+        if header.get("health") is True:  # the child checked the shape; the codes follow as int8
+            codes = np.frombuffer(self._read_exact(n * self.health_units, deadline), dtype=np.int8)
+            if codes.min(initial=0) < 0 or codes.max(initial=0) > 2:
+                raise self._reject("health() codes must be 0 (healthy), 1 (degraded) or 2 (failed)")
+            self.last_health = codes.reshape(n, self.health_units).astype(np.int64)
         return commands
 
     def output(self) -> str:
@@ -560,3 +570,7 @@ class SandboxedController(Controller):
         commands = self.sandbox.act(obs, f"{self.where}, step {self.step}")
         self.step += 1
         return commands
+
+    def health(self) -> np.ndarray | None:
+        """The health codes the child reported with its last commands (``None``: it reports none)."""
+        return self.sandbox.last_health
