@@ -69,6 +69,10 @@ def train_command(
         )
     if in_place and out is not None:
         raise UsageError("give --out or --in-place, not both")
+    suffix = Path(entry.artifacts[0]).suffix
+    if out is not None and out.suffix != suffix:
+        beside = "; its provenance goes beside it as .yaml" if suffix != ".yaml" else ""
+        raise UsageError(f"--out must end in {suffix}, the artifact's format{beside}; got {out}")
     if not in_place and out is None:
         folder = Path("results") / "train"
         folder = folder if benchmark == DEFAULT else folder / benchmark

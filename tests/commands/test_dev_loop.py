@@ -106,6 +106,14 @@ def test_train_writes_aside_and_eval_takes_it_with_params(tmp_path: Path, monkey
     assert list(doc["provenance"]["artifacts"].values()) == [hashlib.sha256(written.read_bytes()).hexdigest()]
 
 
+def test_train_refuses_an_out_path_that_would_lose_the_weights(tmp_path: Path):
+    """Weights written to ``x.yaml`` would be overwritten by their own provenance (``x.yaml``)."""
+    out = tmp_path / "seed1.yaml"
+    result = runner.invoke(app, ["train", "--controller", "rma_dob", "--budget", "quick", "--out", str(out)])
+    assert result.exit_code == 2 and "--out must end in .npz" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
 def test_params_of_another_controller_are_refused(tmp_path: Path):
     result = runner.invoke(
         app, ["eval", "--controller", "pid", "--params", str(PARAMS_DIR / "nussbaum.yaml"), *SMALL]
