@@ -4,8 +4,9 @@ The sensors read the plant's true state and never change it, so every backend se
 observations. Each episode's noise comes from its own stream (``WheelEpisodes.noise_seed``, keyed
 like every other draw of the cell), consumed in a fixed order: first the gyro's constant bias
 (three uniforms), then 16 standard normals per step (head 1, 2, 3 as three axes each, the gyro's
-three axes, the four tachometers). The normals are generated in blocks of steps, which gives
-exactly the numbers of one long draw, so a batch never holds more than a block of noise.
+three axes, the four tachometers). ``observe`` draws each step's normals in its kernel, one
+episode's stream after another (``sim/pcg64.py``); ``observe_reference`` draws them from numpy's
+generators in blocks of steps. Both give exactly the numbers of one long draw.
 
 A head's rotation noise is the MRP ``(sigma_st / 4) z``: the rotation vector of an MRP ``p`` is
 ``4 atan(|p|) p / |p|``, which for 10 arcsec equals ``4 p`` to 1e-14 relative, so each axis gets
