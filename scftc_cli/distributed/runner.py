@@ -131,11 +131,17 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
     if workers is not None and workers < 1:
         raise UsageError("--workers must be at least 1")
     try:
+        import dask
         from distributed import Client, LocalCluster
     except ImportError:
         raise ScftcError(INSTALL_HINT) from None
     if workers is not None:
+        # Dask gives each worker process one BLAS/OpenMP thread, but numba sizes its thread pool
+        # by the machine: two workers on two cores would run four threads of the parallel kernels,
+        # which spin-wait on each other. Each gets its share of the cores instead.
+        threads = max(1, (os.cpu_count() or 1) // workers)
         with (
+            dask.config.set({"distributed.nanny.pre-spawn-environ.NUMBA_NUM_THREADS": threads}),
             LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
             ) as local,

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
@@ -94,6 +95,100 @@ class DetectorSettings:
 
 
 def friction_shape(
+    start: np.ndarray,
+    end: np.ndarray,
+    coulomb_nm: np.ndarray,
+    wheels: WheelKnowledge,
+    dt_s: float,
+    iterations: int = 8,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``friction_shape_reference`` (its definition, below) as one numba pass over the wheels:
+    the same floating-point operations in the same order, so the same bits; ``(n, m)`` arrays
+    in, ``(shape, mean_speed, exact)`` ``(n, m)`` out."""
+    start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
+    coulomb = np.broadcast_to(np.asarray(coulomb_nm, dtype=np.float64), start.shape)
+    shape, mean_speed, exact = np.empty_like(start), np.empty_like(start), np.empty(start.shape, bool)
+    _friction_shape(
+        np.ascontiguousarray(start).reshape(-1),
+        np.ascontiguousarray(end).reshape(-1),
+        np.ascontiguousarray(coulomb).reshape(-1),
+        float(wheels.spin_inertia_kgm2),
+        float(wheels.omega_linear_rad_s),
+        float(wheels.viscous_nms),
+        float(dt_s),
+        int(iterations),
+        shape.reshape(-1),
+        mean_speed.reshape(-1),
+        exact.reshape(-1),
+    )
+    return shape, mean_speed, exact
+
+
+@numba.njit(inline="always")
+def _clip_unit(x: float) -> float:  # pragma: no cover - compiled
+    """``np.clip(x, -1, 1)`` (NaN stays NaN)."""
+    return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
+
+
+@numba.njit(inline="always")
+def _shape_friction(speed, coulomb, w, cv):  # pragma: no cover - compiled
+    """``friction(speed)`` of ``friction_shape_reference`` for one wheel: ``(value, slope)``."""
+    value = -coulomb * _clip_unit(speed / w) - cv * speed
+    slope = (-coulomb / w if abs(speed) < w else 0.0) - cv
+    return value, slope
+
+
+@numba.njit(inline="always")
+def _shape_rk4(e, start, end, coulomb, js, w, cv, dt):  # pragma: no cover - compiled
+    """``rk4(e)`` of ``friction_shape_reference`` for one wheel: ``(miss, its slope, the four
+    stage speeds)``, the stages unrolled (weights 1, 2, 2, 1; steps dt/2, dt/2, dt)."""
+    h = 0.5 * dt
+    s0 = start
+    v, sl = _shape_friction(s0, coulomb, w, cv)
+    k = (e + v) / js
+    k_e = (1.0 + sl * 0.0) / js
+    total, total_e = 0.0 + 1.0 * k, 0.0 + 1.0 * k_e
+    s1, slope_e = start + h * k, h * k_e
+    v, sl = _shape_friction(s1, coulomb, w, cv)
+    k = (e + v) / js
+    k_e = (1.0 + sl * slope_e) / js
+    total, total_e = total + 2.0 * k, total_e + 2.0 * k_e
+    s2, slope_e = start + h * k, h * k_e
+    v, sl = _shape_friction(s2, coulomb, w, cv)
+    k = (e + v) / js
+    k_e = (1.0 + sl * slope_e) / js
+    total, total_e = total + 2.0 * k, total_e + 2.0 * k_e
+    s3, slope_e = start + dt * k, dt * k_e
+    v, sl = _shape_friction(s3, coulomb, w, cv)
+    k = (e + v) / js
+    k_e = (1.0 + sl * slope_e) / js
+    total, total_e = total + 1.0 * k, total_e + 1.0 * k_e
+    return start + dt / 6.0 * total - end, dt / 6.0 * total_e, s0, s1, s2, s3
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _friction_shape(
+    start, end, coulomb, js, w, cv, dt, iterations, shape, mean_speed, exact
+):  # pragma: no cover - compiled
+    for j in range(start.shape[0]):
+        a, b, c = start[j], end[j], coulomb[j]
+        e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
+        for _ in range(iterations):
+            miss, slope, _s0, _s1, _s2, _s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
+            e = e - miss / slope
+        miss, _slope, s0, s1, s2, s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
+        total = 0.0 + 1.0 * _clip_unit(s0 / w)
+        total = total + 2.0 * _clip_unit(s1 / w)
+        total = total + 2.0 * _clip_unit(s2 / w)
+        shape[j] = (total + 1.0 * _clip_unit(s3 / w)) / 6.0
+        speed = 0.0 + 1.0 * s0
+        speed = speed + 2.0 * s1
+        speed = speed + 2.0 * s2
+        mean_speed[j] = (speed + 1.0 * s3) / 6.0
+        exact[j] = abs(miss) < 1e-9
+
+
+def friction_shape_reference(
     start: np.ndarray,
     end: np.ndarray,
     coulomb_nm: np.ndarray,

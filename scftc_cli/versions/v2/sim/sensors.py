@@ -4,19 +4,22 @@ The sensors read the plant's true state and never change it, so every backend se
 observations. Each episode's noise comes from its own stream (``WheelEpisodes.noise_seed``, keyed
 like every other draw of the cell), consumed in a fixed order: first the gyro's constant bias
 (three uniforms), then 16 standard normals per step (head 1, 2, 3 as three axes each, the gyro's
-three axes, the four tachometers). The normals are generated in blocks of steps, which gives
-exactly the numbers of one long draw, so a batch never holds more than a block of noise.
+three axes, the four tachometers). ``observe`` draws each step's normals in its kernel, one
+episode's stream after another (``sim/pcg64.py``); ``observe_reference`` draws them from numpy's
+generators in blocks of steps. Both give exactly the numbers of one long draw.
 
 A head's rotation noise is the MRP ``(sigma_st / 4) z``: the rotation vector of an MRP ``p`` is
 ``4 atan(|p|) p / |p|``, which for 10 arcsec equals ``4 p`` to 1e-14 relative, so each axis gets
 ``sigma_st`` of rotation noise without a transcendental function (those may round differently on
 different CPUs; the observations must not).
 
-``observe_reference`` writes the observation as plain numpy array operations (the readable
-definition); ``observe``, what every rollout calls, runs the same floating-point operations in the
-same order (those of ``mrp.compose`` included), without contraction into fused multiply-adds, as
-one numba pass over the batch: the two agree to the bit, and ``observe`` is several times faster
-on large batches (the noise draws, which both share, aside).
+``observe_reference`` writes the observation as plain numpy array operations, its noise drawn
+from each episode's ``numpy.random.Generator`` (the readable definition); ``observe``, what every
+rollout calls, runs the same floating-point operations in the same order (those of
+``mrp.compose`` included), without contraction into fused multiply-adds, as one numba pass over
+the batch that also draws the noise (``sim/pcg64.py``: numpy's PCG64 and ziggurat, the same
+numbers), in parallel over episodes on large batches. The two agree to the bit; a sensors object
+is read through one of them (each advances its own copy of the streams).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose
+from scftc_cli.sim.pcg64 import standard_normal, states_of
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes, sensor_code
@@ -37,6 +41,9 @@ ARCSEC_TO_RAD = math.pi / (180.0 * 3600.0)
 NOISE_CHANNELS = 16
 """Normals per episode per step: 3 heads x 3 axes, 3 gyro axes, 4 tachometers."""
 BLOCK_STEPS = 50
+PARALLEL_MIN_BATCH = 5_000
+"""From this many episodes on, ``observe`` runs its kernel in parallel over episodes (the same
+numbers: each episode draws from its own stream)."""
 
 
 def sensor_knowledge(suite: SensorSuite, dt_s: float) -> SensorKnowledge:
@@ -88,6 +95,9 @@ class HeadsGyroTachometers(Sensors):
             self.gyro_bias[e] = stream.uniform(-bound, bound, 3)
         self.block = np.empty((n, BLOCK_STEPS, NOISE_CHANNELS))
         self.block_start = -BLOCK_STEPS
+        self.rng = states_of(self.streams)  # observe's copy of the streams, after the gyro bias
+        self.next_step = 0  # the step observe reads next
+        self._kernel = _observe_parallel if n >= PARALLEL_MIN_BATCH else _observe_serial
 
     def _noise(self, k: int) -> np.ndarray:
         """``(n, 16)`` standard normals of step ``k`` (steps are observed in order)."""
@@ -132,18 +142,20 @@ class HeadsGyroTachometers(Sensors):
 
     def observe(self, k: int, plant: Plant) -> np.ndarray:
         """``(n, 19)`` observation of the plant's true state at the start of step ``k``
-        (``observe_reference``'s numbers, fused into one pass)."""
+        (``observe_reference``'s numbers, noise draws included, fused into one pass); steps are
+        read in order, each once."""
+        if k != self.next_step:
+            raise ValueError(f"sensors are read step by step; step {k} follows {self.next_step - 1}")
         states = plant.states()
         sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
-        z = self._noise(k)
         out = np.empty((len(sigma), 9 + self.heads + 3 + wheels.shape[1]))
-        _observe_kernel(
+        self._kernel(
             k,
             self.heads,
             _rows(sigma),
             _rows(omega),
             _rows(wheels),
-            z,
+            self.rng,
             self.onset,
             self.biased,
             self.stuck,
@@ -158,6 +170,7 @@ class HeadsGyroTachometers(Sensors):
             self.knowledge.tachometer_noise_rad_s,
             out,
         )
+        self.next_step = k + 1
         return out
 
 
@@ -187,45 +200,71 @@ def _compose(a0, a1, a2, b0, b1, b2):
     return s0, s1, s2
 
 
-@numba.njit(cache=True)
-def _observe_kernel(
-    k, heads, sigma, omega, wheels, z, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
-    frozen, head_scale, gyro_scale, tach_scale, out,
+@numba.njit(inline="always")
+def _observe_episode(
+    e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
+    gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
 ):  # fmt: skip
-    """``observe_reference`` of every episode of step ``k`` into ``out`` ``(n, 19)``; updates
-    ``frozen``. Per head ``h``: the true attitude (composed with the head's offset where ``st_bias``
-    is in force on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen
-    and repeated from then on; an outage reports zeros and validity 0. Gyro ``((w + bias) + noise)
-    + step`` (the step is 0.0 before the onset, and added all the same, as numpy adds it);
+    """``observe_reference`` of episode ``e`` at step ``k`` into ``out[e]`` (19 values); draws the
+    episode's 16 normals of the step from ``rng[e]`` in channel order and updates ``frozen[e]``.
+    Per head ``h``: the true attitude (composed with the head's offset where ``st_bias`` is in force
+    on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen and
+    repeated from then on; an outage reports zeros and validity 0. Gyro ``((w + bias) + noise) +
+    step`` (the step is 0.0 before the onset, and added all the same, as numpy adds it);
     tachometers ``Omega + noise``.
     """
+    faulted = k >= onset[e]
+    valid = not (outage[e] and faulted)
+    t0, t1, t2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+    for h in range(heads):
+        s0, s1, s2 = t0, t1, t2
+        mine = head[e] == h
+        if faulted and biased[e] and mine:
+            s0, s1, s2 = _compose(t0, t1, t2, head_bias[e, 0], head_bias[e, 1], head_bias[e, 2])
+        j = 3 * h
+        z0 = standard_normal(rng, e)
+        z1 = standard_normal(rng, e)
+        z2 = standard_normal(rng, e)
+        r0, r1, r2 = _compose(s0, s1, s2, head_scale * z0, head_scale * z1, head_scale * z2)
+        if stuck[e] and mine:
+            if k == onset[e]:
+                frozen[e, 0], frozen[e, 1], frozen[e, 2] = r0, r1, r2
+            if faulted:
+                r0, r1, r2 = frozen[e, 0], frozen[e, 1], frozen[e, 2]
+        if valid:
+            out[e, j], out[e, j + 1], out[e, j + 2] = r0, r1, r2
+            out[e, 9 + h] = 1.0
+        else:
+            out[e, j], out[e, j + 1], out[e, j + 2] = 0.0, 0.0, 0.0
+            out[e, 9 + h] = 0.0
+    g = 9 + heads
+    for i in range(3):
+        step = gyro_step[e, i] if faulted else 0.0
+        noise = gyro_scale * standard_normal(rng, e)
+        out[e, g + i] = ((omega[e, i] + gyro_bias[e, i]) + noise) + step
+    for i in range(wheels.shape[1]):
+        out[e, g + 3 + i] = wheels[e, i] + tach_scale * standard_normal(rng, e)
+
+
+@numba.njit(cache=True)
+def _observe_serial(
+    k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
+    frozen, head_scale, gyro_scale, tach_scale, out,
+):  # fmt: skip
     for e in range(sigma.shape[0]):
-        faulted = k >= onset[e]
-        valid = not (outage[e] and faulted)
-        t0, t1, t2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
-        for h in range(heads):
-            s0, s1, s2 = t0, t1, t2
-            mine = head[e] == h
-            if faulted and biased[e] and mine:
-                s0, s1, s2 = _compose(t0, t1, t2, head_bias[e, 0], head_bias[e, 1], head_bias[e, 2])
-            j = 3 * h
-            r0, r1, r2 = _compose(
-                s0, s1, s2, head_scale * z[e, j], head_scale * z[e, j + 1], head_scale * z[e, j + 2]
-            )
-            if stuck[e] and mine:
-                if k == onset[e]:
-                    frozen[e, 0], frozen[e, 1], frozen[e, 2] = r0, r1, r2
-                if faulted:
-                    r0, r1, r2 = frozen[e, 0], frozen[e, 1], frozen[e, 2]
-            if valid:
-                out[e, j], out[e, j + 1], out[e, j + 2] = r0, r1, r2
-                out[e, 9 + h] = 1.0
-            else:
-                out[e, j], out[e, j + 1], out[e, j + 2] = 0.0, 0.0, 0.0
-                out[e, 9 + h] = 0.0
-        g = 9 + heads
-        for i in range(3):
-            step = gyro_step[e, i] if faulted else 0.0
-            out[e, g + i] = ((omega[e, i] + gyro_bias[e, i]) + gyro_scale * z[e, 9 + i]) + step
-        for i in range(wheels.shape[1]):
-            out[e, g + 3 + i] = wheels[e, i] + tach_scale * z[e, 12 + i]
+        _observe_episode(
+            e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
+            gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
+        )  # fmt: skip
+
+
+@numba.njit(parallel=True, cache=True)
+def _observe_parallel(
+    k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
+    frozen, head_scale, gyro_scale, tach_scale, out,
+):  # fmt: skip
+    for e in numba.prange(sigma.shape[0]):
+        _observe_episode(
+            e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
+            gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
+        )  # fmt: skip

@@ -16,7 +16,12 @@ from scftc_cli.sim.mrp import compose, from_axis_angle
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.study.detection import detection_stats
 from scftc_cli.training import TrainRequest
-from scftc_cli.versions.v2.controllers.detection import DetectorSettings, WheelMonitor, friction_shape
+from scftc_cli.versions.v2.controllers.detection import (
+    DetectorSettings,
+    WheelMonitor,
+    friction_shape,
+    friction_shape_reference,
+)
 from scftc_cli.versions.v2.controllers.fdir import FDIR, load_fdir_params
 from scftc_cli.versions.v2.controllers.law import rotation_mrp, vote
 from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFSettings, rotation_vector
@@ -194,6 +199,23 @@ def test_friction_shape_is_the_plants_rk4_average_in_and_around_the_linear_zone(
     ends = -coulomb * 0.5 * (np.clip(start / w, -1, 1) + np.clip(end / w, -1, 1))
     noise = np.sqrt(2) * SENSORS.tachometer_noise_rad_s * js / DT
     assert np.abs(ends - measured)[crossing].max() > 10 * noise
+
+
+def test_friction_shape_is_its_numpy_reference_to_the_bit():
+    rng = np.random.default_rng(3)
+    n, m = 3000, 4
+    w = WHEELS.omega_linear_rad_s
+    start = rng.uniform(-3.0 * w, 3.0 * w, (n, m))
+    start[:100] = rng.uniform(-2000.0, 2000.0, (100, m))  # far outside the zone too
+    end = start + rng.normal(0.0, 0.3 * w, (n, m))
+    end[100:200] = start[100:200]  # no change at all
+    coulomb = WHEELS.coulomb_nm * rng.uniform(1.0, 60.0, (n, m))
+    for iterations in (8, 1):  # one Newton step leaves some wheels unconverged
+        fused = friction_shape(start, end, coulomb, WHEELS, DT, iterations)
+        reference = friction_shape_reference(start, end, coulomb, WHEELS, DT, iterations)
+        for got, want in zip(fused, reference, strict=True):
+            np.testing.assert_array_equal(got, want)
+    assert fused[2].any() and not fused[2].all()  # both outcomes of the convergence test
 
 
 # --- the controller ------------------------------------------------------------------------------

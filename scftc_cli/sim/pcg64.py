@@ -1,0 +1,126 @@
+"""numpy's ``PCG64`` streams and their standard normals, drawn inside a numba kernel.
+
+``Generator(PCG64(seed)).standard_normal()`` is numpy's ziggurat (``random_standard_normal`` in
+numpy's ``distributions.c``) on PCG64's 64-bit outputs (``pcg64.h``: the 128-bit LCG step
+``state = state * M + inc``, then the XSL-RR output of the new state). ``standard_normal`` below
+is the same algorithm, the same tables and the same floating-point operations, so a kernel that
+draws a stream's normals one at a time gets exactly the numbers numpy would have drawn from it
+(``tests/sim/test_pcg64.py`` checks that on millions of draws, the ziggurat's rare branches
+included). What it buys: one Python call per batch instead of one per episode, no block of
+normals in memory, and the draws of different episodes can run in parallel.
+
+A stream's state is four ``uint64`` words, ``(state >> 64, state & M64, inc >> 64, inc & M64)``;
+a batch of streams is an ``(n, 4)`` ``uint64`` array (``states_of``), advanced in place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.core.extending import intrinsic
+
+# numpy's ziggurat tables for the normal distribution (numpy/random/src/distributions/
+# ziggurat_constants.h), as numba's own Generator support carries them
+from numba.np.random._constants import (
+    fi_double,
+    ki_double,
+    wi_double,
+    ziggurat_nor_inv_r,
+    ziggurat_nor_r,
+)
+
+_MASK64 = (1 << 64) - 1
+_MULT_HI = np.uint64(2549297995355413924)  # PCG_DEFAULT_MULTIPLIER_128, high and low words
+_MULT_LO = np.uint64(4865540595714422341)
+_KI = np.asarray(ki_double, dtype=np.uint64)
+_WI = np.asarray(wi_double, dtype=np.float64)
+_FI = np.asarray(fi_double, dtype=np.float64)
+_R = float(ziggurat_nor_r)
+_INV_R = float(ziggurat_nor_inv_r)
+_U0, _U1, _U8, _U11, _U58, _U63, _U64 = (np.uint64(v) for v in (0, 1, 8, 11, 58, 63, 64))
+_U255 = np.uint64(0xFF)
+_U52 = np.uint64(0x000FFFFFFFFFFFFF)
+_TO_DOUBLE = 1.0 / 9007199254740992.0  # 2^-53, numpy's next_double
+
+
+def states_of(generators: Sequence[np.random.Generator]) -> np.ndarray:
+    """``(n, 4)`` ``uint64`` states of ``n`` PCG64 generators, as they stand (a copy: drawing from
+    it leaves the generators where they are)."""
+    out = np.empty((len(generators), 4), dtype=np.uint64)
+    for e, generator in enumerate(generators):
+        state = generator.bit_generator.state
+        if state["bit_generator"] != "PCG64":
+            raise ValueError(f"a PCG64 stream is needed, got {state['bit_generator']}")
+        s, inc = state["state"]["state"], state["state"]["inc"]
+        out[e] = (s >> 64, s & _MASK64, inc >> 64, inc & _MASK64)
+    return out
+
+
+@intrinsic
+def _mulhi(typingctx, a, b):
+    """The high 64 bits of the 128-bit product of two ``uint64`` (one ``mul`` instruction)."""
+    sig = types.uint64(types.uint64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        wide = ir.IntType(128)
+        product = builder.mul(builder.zext(args[0], wide), builder.zext(args[1], wide))
+        return builder.trunc(builder.lshr(product, ir.Constant(wide, 64)), ir.IntType(64))
+
+    return sig, codegen
+
+
+@numba.njit(inline="always")
+def next_uint64(state: np.ndarray, e: int) -> np.uint64:  # pragma: no cover - compiled
+    """Advance stream ``e`` of ``state`` ``(n, 4)`` one step; its next 64-bit output."""
+    hi, lo = state[e, 0], state[e, 1]
+    product_lo = lo * _MULT_LO
+    product_hi = _mulhi(lo, _MULT_LO) + lo * _MULT_HI + hi * _MULT_LO  # type: ignore[call-arg]
+    new_lo = product_lo + state[e, 3]
+    carry = _U1 if new_lo < product_lo else _U0
+    new_hi = product_hi + state[e, 2] + carry
+    state[e, 0], state[e, 1] = new_hi, new_lo
+    word = new_hi ^ new_lo
+    turn = new_hi >> _U58
+    return (word >> turn) | (word << ((_U64 - turn) & _U63))
+
+
+@numba.njit(inline="always")
+def next_double(state: np.ndarray, e: int) -> float:  # pragma: no cover - compiled
+    """numpy's ``next_double``: the top 53 bits of the next output, in [0, 1)."""
+    return float(next_uint64(state, e) >> _U11) * _TO_DOUBLE
+
+
+@numba.njit(inline="always")
+def standard_normal(state: np.ndarray, e: int) -> float:  # pragma: no cover - compiled
+    """The next standard normal of stream ``e``: numpy's ``random_standard_normal``."""
+    while True:
+        r = next_uint64(state, e)
+        idx = r & _U255
+        r = r >> _U8
+        rabs = (r >> _U1) & _U52
+        x = float(rabs) * _WI[idx]
+        if r & _U1:
+            x = -x
+        if rabs < _KI[idx]:
+            return x  # 99.3 % of the draws
+        if idx == 0:
+            while True:  # the tail, with 1 - U so that the log never sees 0
+                xx = -_INV_R * np.log1p(-next_double(state, e))
+                yy = -np.log1p(-next_double(state, e))
+                if yy + yy > xx * xx:
+                    return -(_R + xx) if (rabs >> _U8) & _U1 else _R + xx
+        elif (_FI[idx - _U1] - _FI[idx]) * next_double(state, e) + _FI[idx] < np.exp(-0.5 * x * x):
+            return x
+
+
+@numba.njit(cache=True)
+def fill_standard_normal(state: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``out[e] = `` the next ``out.shape[1]`` normals of stream ``e``, for every row ``e``
+    (what ``generator.standard_normal(out=out[e])`` draws)."""
+    for e in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[e, j] = standard_normal(state, e)
