@@ -27,7 +27,8 @@ VERSION = Version(
         ControllerSpec(
             "pd",
             "scftc_cli.versions.v3.controllers.analytic:PD",
-            "fault-unaware rate-limited PD to the window's target, rods unloading by h x B, rod torque fed forward",
+            "fault-unaware rate-limited PD to the window's target, rods unloading by h x B, "
+            "rod torque fed forward",
             family="reference",
         ),
         ControllerSpec(
@@ -47,7 +48,8 @@ VERSION = Version(
         ControllerSpec(
             "oracle",
             "scftc_cli.versions.v3.controllers.analytic:Oracle",
-            "privileged: the teacher plus true offsets, friction (bursts, ramps), environment torques, true field",
+            "privileged: the teacher plus true offsets, friction (bursts, ramps), environment torques, "
+            "true field",
             privileged=True,
             family="oracle",
         ),

@@ -46,13 +46,15 @@ class Thresholds:
     """The detectors' settings (chosen on the train split)."""
 
     persist_steps: int = 20
-    rod_persist_steps: int = 100
+    rod_persist_steps: int = 200
+    rod_dead_gain: float = 0.25
     forgetting: float = 0.99
     rod_forgetting: float = 0.998
     gain_variance_max: float = 3000.0
-    rod_variance_max: float = 2000.0
+    rod_variance_max: float = 0.02
+    hold_rate_rad_s: float = 0.003
     dead_gain: float = 0.3
-    half_gain: float = 0.55
+    half_gain: float = 0.5
     gain_tol: float = 0.15
     offset_tol: float = 0.012
     head_tol_rad: float = 60.0 * np.pi / (180.0 * 3600.0)
@@ -105,11 +107,17 @@ class FDIR(MissionLaw):
         self.theta = np.zeros((n, m, 2))
         self.theta[..., 0] = 1.0
         self.p = np.broadcast_to(np.diag([1e4, 1e4]), (n, m, 2, 2)).copy()
-        self.rod_theta = np.ones((n, 4))
-        self.rod_p = np.broadcast_to(np.diag([1.0, 1e4, 1e4, 1e4]), (n, 4, 4)).copy()
+        self.rod_theta = np.ones((n, 3))
+        self.rod_p = np.broadcast_to(np.diag([10.0, 10.0, 10.0]), (n, 3, 3)).copy()
         self.last: dict[str, np.ndarray] | None = None
-        self.wheel_failed, self.wheel_degraded = Latch((n, m), t.persist_steps), Latch((n, m), t.persist_steps)
-        self.rod_failed, self.rod_degraded = Latch((n, 3), t.rod_persist_steps), Latch((n, 3), t.rod_persist_steps)
+        self.wheel_failed, self.wheel_degraded = (
+            Latch((n, m), t.persist_steps),
+            Latch((n, m), t.persist_steps),
+        )
+        self.rod_failed, self.rod_degraded = (
+            Latch((n, 3), t.rod_persist_steps),
+            Latch((n, 3), t.rod_persist_steps),
+        )
         self.head_failed, self.head_degraded = Latch((n, 3), 3), Latch((n, 3), t.persist_steps)
         self.gyro_flag = Latch((n,), t.persist_steps)
         self.gyro_bias = np.zeros((n, 3))
@@ -122,13 +130,15 @@ class FDIR(MissionLaw):
         t = self.thresholds
         flagged = self.wheel_failed.raised | self.wheel_degraded.raised
         g_hat = self.theta[..., 0]
-        gain = np.where(flagged, np.where(g_hat < t.dead_gain, np.where(g_hat < -t.dead_gain, g_hat, 0.0), g_hat), 1.0)
+        gain = np.where(
+            flagged, np.where(g_hat < t.dead_gain, np.where(g_hat < -t.dead_gain, g_hat, 0.0), g_hat), 1.0
+        )
         offset = np.where(flagged & (np.abs(gain) > 0.0), self.theta[..., 1], 0.0)
         return gain, offset, friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
 
     def rod_gain(self) -> np.ndarray:
         flagged = self.rod_failed.raised | self.rod_degraded.raised
-        r_hat = np.clip(self.rod_theta[:, 1:], -1.0, 1.0)
+        r_hat = np.clip(self.rod_theta, -1.0, 1.0)
         return np.where(flagged, np.where(np.abs(r_hat) < 0.25, 0.0, r_hat), 1.0)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -196,7 +206,9 @@ class FDIR(MissionLaw):
         d_omega = (gyro - self.last["gyro"]) / dt
         d_wheel = (tach - self.last["tach"]) / dt
         applied = w.spin_inertia_kgm2 * (d_wheel + d_omega @ axes.T)  # (n, m) motor + friction
-        friction = 0.5 * (friction_nm(self.last["tach"], w.coulomb_nm, w) + friction_nm(tach, w.coulomb_nm, w))
+        friction = 0.5 * (
+            friction_nm(self.last["tach"], w.coulomb_nm, w) + friction_nm(tach, w.coulomb_nm, w)
+        )
         a = self.last["command"][:, : self.m]
         y = (applied - friction) / u_max
         usable = (np.abs(a) < 0.9) & (np.abs(tach) < 0.95 * w.omega_max_rad_s) & (self.k > 2)
@@ -206,31 +218,44 @@ class FDIR(MissionLaw):
         g_hat, offset = self.theta[..., 0], self.theta[..., 1]
         warm = self.k > t.warmup_steps
         self.wheel_failed.update(warm & known & (g_hat < t.dead_gain))
-        self.wheel_degraded.update(warm & ((known & (np.abs(g_hat - 1.0) > t.gain_tol)) | (np.abs(offset) > t.offset_tol)))
-        # rods: the hub's momentum balance, regressed on (inertia scale, three rod gains)
-        inertia = self.context.inertia_nominal_kgm2
-        mean_w = 0.5 * (gyro + self.last["gyro"])
-        hub = inertia * d_omega + cross(mean_w, inertia * mean_w)
+        self.wheel_degraded.update(
+            warm & ((known & (np.abs(g_hat - 1.0) > t.gain_tol)) | (np.abs(offset) > t.offset_tol))
+        )
+        # rods: while the hub holds still the wheels absorb the external torque, mostly the rods'
         dipole = self.last["command"][:, self.m :] * self.rods.dipole_max_am2
-        columns = [-cross(dipole[:, j : j + 1] * self.rods.axes[j], self.last["field"]) for j in range(3)]
-        phi_rod = np.stack([hub, *columns], axis=-1)  # (n, 3, 4)
-        wheel_torque = applied @ axes  # the wheels' torques on themselves; the hub gets minus this
-        y_rod = -wheel_torque - cross(mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context))
+        columns = [cross(dipole[:, j : j + 1] * self.rods.axes[j], self.last["field"]) for j in range(3)]
+        phi_rod = np.stack(columns, axis=-1)  # (n, 3 axes, 3 rods)
+        mean_w = 0.5 * (gyro + self.last["gyro"])
+        holding = (np.sqrt(norm2(mean_w)) < t.hold_rate_rad_s) & (self.k > 2)
+        # L = I dw/dt + w x H + sum_i g_i tau_i, with dw/dt ~ 0 and I w small while holding
+        y_rod = applied @ axes + cross(mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context))
+        scale = self.rods.dipole_max_am2 * np.maximum(np.sqrt(norm2(self.last["field"])), 1e-9)[:, None]
+        phi_rod, y_rod = phi_rod / scale[:, :, None], y_rod / scale
         for row in range(3):
             self.rod_theta, self.rod_p = rls_update(
-                self.rod_theta, self.rod_p, phi_rod[:, row], y_rod[:, row], t.rod_forgetting ** (1 / 3), self.k > 2, 3e4
+                self.rod_theta,
+                self.rod_p,
+                phi_rod[:, row],
+                y_rod[:, row],
+                t.rod_forgetting ** (1 / 3),
+                holding,
+                30.0,
             )
-        rods_known = self.rod_p[:, np.arange(1, 4), np.arange(1, 4)] < t.rod_variance_max
-        r_hat = self.rod_theta[:, 1:]
+        rods_known = self.rod_p[:, np.arange(3), np.arange(3)] < t.rod_variance_max
+        r_hat = self.rod_theta
         warm_rods = self.k > 4 * t.warmup_steps
-        self.rod_failed.update(warm_rods & rods_known & (r_hat < t.dead_gain))
+        self.rod_failed.update(warm_rods & rods_known & (r_hat < t.rod_dead_gain))
         self.rod_degraded.update(warm_rods & rods_known & (r_hat < t.half_gain))
 
     def _codes(self) -> None:
         m = self.m
         codes = self.codes
-        codes[:, :m] = np.where(self.wheel_failed.raised, FAILED, np.where(self.wheel_degraded.raised, DEGRADED, 0))
-        codes[:, m : m + 3] = np.where(self.rod_failed.raised, FAILED, np.where(self.rod_degraded.raised, DEGRADED, 0))
+        codes[:, :m] = np.where(
+            self.wheel_failed.raised, FAILED, np.where(self.wheel_degraded.raised, DEGRADED, 0)
+        )
+        codes[:, m : m + 3] = np.where(
+            self.rod_failed.raised, FAILED, np.where(self.rod_degraded.raised, DEGRADED, 0)
+        )
         codes[:, m + 3 : m + 6] = np.where(
             self.head_failed.raised, FAILED, np.where(self.head_degraded.raised, DEGRADED, 0)
         )

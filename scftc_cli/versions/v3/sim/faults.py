@@ -7,10 +7,10 @@ from a ``SeedSequence`` keyed by the version, the split, the class and the index
 | stream key | index | draws |
 |---|---|---|
 | ``(split, class)`` | ``(0, i)`` | the fault (``sample_fault``) |
-| ``(split, class)`` | ``(1, i, j)`` | the initial attitude, rate, inertia-free wheel-speed spread |
+| ``(split, class)`` | ``(1, i, j)`` | initial attitude, rate, wheel-speed spread |
 | ``(split, class)`` | ``(2, i, j)`` | the orbit and environment (``sample_environment``) |
-| ``(split, class)`` | ``(3, i, j)`` | the mission: stored momentum and slews (``sample_mission``), redrawn until feasible |
-| ``(split, class, "sensor", name)`` | ``(i, j)`` | a sensor fault (a sensor cell's, or a ``compound`` fault's) |
+| ``(split, class)`` | ``(3, i, j)`` | stored momentum, slews (``sample_mission``); redrawn until feasible |
+| ``(split, class, "sensor", name)`` | ``(i, j)`` | a sensor fault (a sensor cell's or a ``compound``'s) |
 | ``(split, class, "noise")`` | ``(i, j)`` | the entropy of the episode's sensor-noise streams |
 
 Sensor cells sit on the split's ``sign`` faults and use the ``sign`` cell's keys (faults, initial
@@ -339,9 +339,11 @@ def pinned_episodes(
         )
         env = sample_environment(ranges, plant, generator(spec.version, *key, index=(2, i, j), salt=salt))
         rng = generator(spec.version, *key, index=(3, i, j), salt=salt)
-        for draws in range(1, MAX_MISSION_DRAWS + 1):
+        draws = 0
+        while True:
             h_b, targets = sample_mission(ranges, plant, rng)
-            if feasible(plant, fault, sigma0, h_b, targets):
+            draws += 1
+            if draws == MAX_MISSION_DRAWS or feasible(plant, fault, sigma0, h_b, targets):
                 break
         speeds = wheel_speeds(plant, fault.inertia_scale, omega0, h_b, spread)
         sensor_rng = (

@@ -138,8 +138,8 @@ class V3Sensors(Sensors):
                 raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
             for e, stream in enumerate(self.streams):
                 stream.standard_normal(out=self.block[e])
-            for e, stream in zip(self.spike_rows, self.spike_streams, strict=True):
-                stream.random(out=self.spike_block[e])
+            for row, stream in zip(self.spike_rows, self.spike_streams, strict=True):
+                stream.random(out=self.spike_block[row])
             self.block_start = k
         j = k - self.block_start
         return self.block[:, j], self.spike_block[:, j]
