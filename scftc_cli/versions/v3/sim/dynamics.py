@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
+from typing import Any, Self
 
 import numpy as np
 
@@ -409,6 +410,21 @@ class V3PlantBase(Plant):
         self.applied_torque_nm = np.zeros((n, m))
         self.dipole_am2 = np.zeros((n, N_RODS))
         self.external_torque_nm = np.zeros((n, 3))
+
+    @classmethod
+    def of(cls, episodes: Any, constants: V3Constants | None = None, **options: Any) -> Self:
+        """A plant holding ``episodes``' initial states, faults and environments (the one place that
+        maps an episode onto the plant's arguments); ``options`` go to the backend (``parallel``)."""
+        return cls(
+            episodes.sigma0,
+            episodes.omega0_rad_s,
+            episodes.wheel_speed0_rad_s,
+            episodes.inertia_scale,
+            episodes.fault,
+            episodes.environment,
+            constants,
+            **options,
+        )
 
     def trig_at(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(cos u, sin u)`` ``(n,)`` at ``t = k dt`` (cached: each is used by two steps)."""

@@ -70,17 +70,8 @@ class MissionMixin:
     targets: np.ndarray
 
     @classmethod
-    def of(cls, episodes: Any, **options: Any) -> Self:
-        plant = cls(  # type: ignore[call-arg]
-            episodes.sigma0,
-            episodes.omega0_rad_s,
-            episodes.wheel_speed0_rad_s,
-            episodes.inertia_scale,
-            episodes.fault,
-            episodes.environment,
-            CONSTANTS,
-            **options,
-        )
+    def of(cls, episodes: Any, constants: V3Constants | None = None, **options: Any) -> Self:
+        plant = super().of(episodes, CONSTANTS if constants is None else constants, **options)  # type: ignore[misc]
         plant.targets = np.asarray(episodes.targets)
         return plant
 
