@@ -53,6 +53,10 @@ class AgilePlant(ReactionWheelPlant):
             store the system momentum, less ``unload_allowance_nms``, at every target from the
             onset's window on, with this fraction of their envelope.
         unload_allowance_nms: momentum the rods can be counted on to remove over an episode.
+        health_gain_tolerance, health_offset_tolerance, health_friction_tolerance: the diagnosis
+            truth counts a wheel healthy while its gain magnitude is within this of 1, its offset
+            within this fraction of ``u_max`` and its friction multipliers (constant, ramp end,
+            burst) at most this; beyond, degraded.
     """
 
     kind: Literal["reaction-wheels-rods"] = "reaction-wheels-rods"  # type: ignore[assignment]
@@ -73,6 +77,9 @@ class AgilePlant(ReactionWheelPlant):
     max_bursts: int = 32
     feasibility_margin: float = 0.95
     unload_allowance_nms: float = 0.2
+    health_gain_tolerance: float = 0.1
+    health_offset_tolerance: float = 0.02
+    health_friction_tolerance: float = 1.5
 
     @property
     def windows(self) -> int:

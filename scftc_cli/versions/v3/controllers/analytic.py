@@ -58,15 +58,18 @@ class MissionLaw(Controller):
     def disturbance_nm(self, sigma: np.ndarray) -> np.ndarray:
         return np.zeros((self.n, 3))
 
+    def unloading(self, time_left_s: np.ndarray) -> np.ndarray:
+        """``(n, 1)`` 1 where the rods unload this step, 0 where they stay off."""
+        return np.ones((self.n, 1))
+
     def act(self, obs: np.ndarray) -> np.ndarray:
-        heads, valid, gyro, tach, magnetometer, target, _ = split_observation(obs)
+        heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(obs)
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
         demand = rate_limited_demand(attitude_error(sigma, target), gyro, tach, self.context)
         field = self.field_body(magnetometer, sigma)
         rod_gain = self.rod_gain()
-        rods = rod_commands(
-            unloading_dipole(wheel_momentum(tach, self.context), field, self.rods), rod_gain, self.rods
-        )
+        wanted = unloading_dipole(wheel_momentum(tach, self.context), field, self.rods)
+        rods = rod_commands(wanted * self.unloading(time_left), rod_gain, self.rods)
         rod_torque = cross(rod_gain * rods * self.rods.dipole_max_am2, field)
         gain, offset, friction = self.wheel_model(tach)
         matrix = self.nominal if np.all(gain == 1.0) else allocation(gain, self.wheels)

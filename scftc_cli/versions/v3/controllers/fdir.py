@@ -46,23 +46,25 @@ class Thresholds:
     """The detectors' settings (chosen on the train split)."""
 
     persist_steps: int = 20
-    rod_persist_steps: int = 200
+    rod_persist_steps: int = 60
     rod_dead_gain: float = 0.25
     forgetting: float = 0.99
     rod_forgetting: float = 0.998
     gain_variance_max: float = 3000.0
     rod_variance_max: float = 0.02
-    hold_rate_rad_s: float = 0.003
+    hold_rate_rad_s: float = 3e-4
     dead_gain: float = 0.3
     half_gain: float = 0.5
-    gain_tol: float = 0.15
-    offset_tol: float = 0.012
+    gain_tol: float = 0.1
+    offset_tol: float = 0.005
     head_tol_rad: float = 60.0 * np.pi / (180.0 * 3600.0)
     gyro_tol_rad_s: float = 6e-5
     gyro_filter: float = 0.995
     spike_fraction: float = 0.3
     spike_count: int = 3
     warmup_steps: int = 40
+    adaptive: bool = True
+    quiet_rods_s: float = 60.0
 
 
 class Latch:
@@ -130,11 +132,17 @@ class FDIR(MissionLaw):
         t = self.thresholds
         flagged = self.wheel_failed.raised | self.wheel_degraded.raised
         g_hat = self.theta[..., 0]
+        use = flagged | (t.adaptive & (self.p[..., 0, 0] < t.gain_variance_max))
         gain = np.where(
-            flagged, np.where(g_hat < t.dead_gain, np.where(g_hat < -t.dead_gain, g_hat, 0.0), g_hat), 1.0
+            use, np.where(g_hat < t.dead_gain, np.where(g_hat < -t.dead_gain, g_hat, 0.0), g_hat), 1.0
         )
-        offset = np.where(flagged & (np.abs(gain) > 0.0), self.theta[..., 1], 0.0)
+        offset = np.where((flagged | t.adaptive) & (np.abs(gain) > 0.0), self.theta[..., 1], 0.0)
         return gain, offset, friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
+
+    def unloading(self, time_left_s: np.ndarray) -> np.ndarray:
+        """The rods rest over each window's last ``quiet_rods_s``: a rod fault cannot disturb the
+        final dwell, whatever the identification says."""
+        return (time_left_s > self.thresholds.quiet_rods_s).astype(float)[:, None]
 
     def rod_gain(self) -> np.ndarray:
         flagged = self.rod_failed.raised | self.rod_degraded.raised
@@ -226,7 +234,8 @@ class FDIR(MissionLaw):
         columns = [cross(dipole[:, j : j + 1] * self.rods.axes[j], self.last["field"]) for j in range(3)]
         phi_rod = np.stack(columns, axis=-1)  # (n, 3 axes, 3 rods)
         mean_w = 0.5 * (gyro + self.last["gyro"])
-        holding = (np.sqrt(norm2(mean_w)) < t.hold_rate_rad_s) & (self.k > 2)
+        torquing = np.abs(dipole).max(axis=1) > 0.1 * self.rods.dipole_max_am2  # else nothing to learn
+        holding = (np.sqrt(norm2(mean_w)) < t.hold_rate_rad_s) & torquing & (self.k > 2)
         # L = I dw/dt + w x H + sum_i g_i tau_i, with dw/dt ~ 0 and I w small while holding
         y_rod = applied @ axes + cross(mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context))
         scale = self.rods.dipole_max_am2 * np.maximum(np.sqrt(norm2(self.last["field"])), 1e-9)[:, None]

@@ -80,7 +80,8 @@ def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
     faults themselves (so a mixed batch works too):
 
     - a wheel: failed if its gain is 0 or negative (dead or reversed); degraded if its magnitude,
-      offset, friction (constant, ramp or bursts) is off nominal;
+      offset or friction (constant, ramp end or bursts) is off nominal by more than the plant's
+      ``health_*_tolerance`` (within it the wheel counts healthy);
     - a rod: failed if its gain is 0 or negative; degraded if it is off 1 (half dipole);
     - a head: failed if stuck or in an outage (all three); degraded if biased;
     - the gyro: degraded by a bias step; the magnetometer: degraded by a bias or spikes.
@@ -93,12 +94,13 @@ def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
     codes = np.zeros((n, len(UNITS)), dtype=np.int64)
     gain = np.asarray(f.gain)
     has_bursts = np.any(np.asarray(f.burst_end_step) > np.asarray(f.burst_start_step), axis=1)[:, None]
+    plant = PLANT
+    friction = np.maximum(np.asarray(f.friction_multiplier), np.asarray(f.friction_ramp_end))
+    friction = np.maximum(friction, np.where(has_bursts, np.asarray(f.burst_multiplier), 1.0))
     off = (
-        (gain != 1.0)
-        | (np.asarray(f.bias) != 0.0)
-        | (np.asarray(f.friction_multiplier) != 1.0)
-        | (np.asarray(f.friction_ramp_end) != 1.0)
-        | ((np.asarray(f.burst_multiplier) != 1.0) & has_bursts)
+        (np.abs(np.abs(gain) - 1.0) > plant.health_gain_tolerance)
+        | (np.abs(np.asarray(f.bias)) > plant.health_offset_tolerance)
+        | (friction > plant.health_friction_tolerance)
     )
     wheels = slice(UNITS.index(WHEEL_UNITS[0]), UNITS.index(WHEEL_UNITS[-1]) + 1)
     codes[:, wheels] = np.where(gain <= 0.0, FAILED, np.where(off, DEGRADED, HEALTHY))
