@@ -62,8 +62,12 @@ class MissionLaw(Controller):
         """``(n, 1)`` 1 where the rods unload this step, 0 where they stay off."""
         return np.ones((self.n, 1))
 
+    def corrected(self, obs: np.ndarray) -> np.ndarray:
+        """The observation the law flies on (the raw one unless a subclass knows better)."""
+        return obs
+
     def act(self, obs: np.ndarray) -> np.ndarray:
-        heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(obs)
+        heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
         demand = rate_limited_demand(attitude_error(sigma, target), gyro, tach, self.context)
         field = self.field_body(magnetometer, sigma)
@@ -117,7 +121,27 @@ class Teacher(MissionLaw):
 
 class Oracle(Teacher):
     """Privileged: the teacher plus the true offsets and friction (bursts and ramps), the
-    environment's torques fed forward and the true field for the rods."""
+    environment's torques fed forward, the true field for the rods, and the sensor faults: the
+    gyro-bias step removed, a biased or stuck head ignored (marked invalid)."""
+
+    def corrected(self, obs: np.ndarray) -> np.ndarray:
+        from scftc_cli.versions.v2.sim.faults import sensor_code
+        from scftc_cli.versions.v2.spec import V2
+
+        fault = self.episodes.sensor_fault
+        kind, active = np.asarray(fault.kind), self.k >= np.asarray(self.episodes.fault.onset_step)
+        out = obs.copy()
+        step = np.where(
+            (active & (kind == sensor_code(V2, "gyro_bias")))[:, None], fault.gyro_bias_step_rad_s, 0.0
+        )
+        out[:, 12:15] = obs[:, 12:15] - step
+        bad = active & ((kind == sensor_code(V2, "st_bias")) | (kind == sensor_code(V2, "st_stuck")))
+        rows = np.flatnonzero(bad)
+        heads = np.asarray(fault.head)[rows]
+        out[rows, 9 + heads] = 0.0
+        for axis in range(3):
+            out[rows, 3 * heads + axis] = 0.0
+        return out
 
     def reset(self, n: int, context: Context) -> None:
         super().reset(n, context)

@@ -20,10 +20,13 @@ Detectors, all on the observation alone (batch-first; each flag needs its condit
 - **magnetometer**: a reading that jumps by more than ``spike_fraction`` of the field's size from
   the last one is a spike; ``spike_count`` of them is degraded.
 
-Recovery: a flagged wheel is allocated through its identified gain (dead below ``dead_gain``) and
-its identified offset is cancelled; a flagged rod is commanded through its identified gain; a
-flagged gyro has its estimated bias removed; a spiking magnetometer's jumps are replaced by the
-last good reading. The thresholds are set on the train split (docs/benchmark-v3.md).
+Recovery: a wheel found failed is probed for ``probe_steps`` (a small square wave, nothing else
+on it; again every ``reprobe_steps`` while it looks dead) so that its gain is identified. Wheels
+fly through their identified gains (dead below ``dead_gain``) once identified (``adaptive``) with
+their identified offsets cancelled; a flagged rod is commanded through its identified gain, and
+the rods rest over each window's last ``quiet_rods_s``; a flagged gyro has its estimated bias
+removed; a spiking magnetometer's jumps are replaced by the last good reading. The thresholds
+are set on the train split (docs/benchmark-v3.md).
 """
 
 from __future__ import annotations
@@ -64,6 +67,9 @@ class Thresholds:
     spike_count: int = 3
     warmup_steps: int = 40
     adaptive: bool = True
+    probe: float = 0.03
+    probe_steps: int = 60
+    reprobe_steps: int = 300
     quiet_rods_s: float = 60.0
 
 
@@ -122,6 +128,7 @@ class FDIR(MissionLaw):
         )
         self.head_failed, self.head_degraded = Latch((n, 3), 3), Latch((n, 3), t.persist_steps)
         self.gyro_flag = Latch((n,), t.persist_steps)
+        self.probe_until = np.full((n, m), -1)
         self.gyro_bias = np.zeros((n, 3))
         self.spikes = np.zeros(n, dtype=np.int64)
         self.good_field = np.zeros((n, 3))
@@ -160,6 +167,9 @@ class FDIR(MissionLaw):
             self._wheels_and_rods(gyro, tach, field)
             self._gyro(heads, valid, gyro)
         command = super().act(clean)
+        probing = self.k - 1 < self.probe_until  # probe a wheel just found failed: dead or reversed?
+        square = np.where(((self.k // 4) % 2) == 0, 1.0, -1.0)
+        command[:, : self.m] = np.where(probing, self.thresholds.probe * square, command[:, : self.m])
         self.last = {
             "gyro": gyro.copy(), "tach": tach.copy(), "command": command.copy(), "field": field.copy(),
             "heads": heads.copy(), "valid": valid.copy(),
@@ -225,7 +235,11 @@ class FDIR(MissionLaw):
         known = self.p[..., 0, 0] < t.gain_variance_max
         g_hat, offset = self.theta[..., 0], self.theta[..., 1]
         warm = self.k > t.warmup_steps
+        was_failed = self.wheel_failed.raised.copy()
         self.wheel_failed.update(warm & known & (g_hat < t.dead_gain))
+        unsure = self.wheel_failed.raised & (np.abs(g_hat) < 0.5) & (self.k % t.reprobe_steps == 0)
+        start = (self.wheel_failed.raised & ~was_failed) | unsure
+        self.probe_until = np.where(start, self.k + t.probe_steps, self.probe_until)
         self.wheel_degraded.update(
             warm & ((known & (np.abs(g_hat - 1.0) > t.gain_tol)) | (np.abs(offset) > t.offset_tol))
         )
