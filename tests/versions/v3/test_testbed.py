@@ -231,3 +231,28 @@ def test_a_draft_version_is_registered_but_not_published():
 
     makefile = (Path(__file__).resolve().parents[3] / "Makefile").read_text()
     assert "published_names" in makefile and "print(*version_names())" not in makefile
+
+
+def test_a_submission_to_a_draft_version_is_refused_a_board(tmp_path):
+    from scftc_cli.board.ops import land
+
+    path = tmp_path / "v3_entry.py"
+    path.write_text(
+        "import numpy as np\n\n"
+        "SUBMISSION = {'name': 'v3_entry', 'version': '1.0.0', 'authors': ['a tester'],\n"
+        "              'description': 'holds still', 'entry': 'Still', 'license': 'MIT',\n"
+        "              'benchmark': 'scftc-v3'}\n\n\n"
+        "class Still:\n"
+        "    def reset(self, n, context):\n"
+        "        self.n = n\n\n"
+        "    def act(self, obs):\n"
+        "        return np.zeros((self.n, 7))\n"
+    )
+    board = tmp_path / "scftc-v3.json"
+
+    def never(_version):
+        raise AssertionError("a draft is never scored for a board")
+
+    report = land([path], never, lambda _v: board)
+    assert str(path) in report.rejected and "draft" in report.rejected[str(path)]
+    assert not board.exists()
