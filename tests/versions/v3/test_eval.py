@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from scftc_cli.baselines.checker import check_controller
@@ -15,6 +16,7 @@ from scftc_cli.registry import make_controller
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.versions import get_version
+from scftc_cli.versions.v3.controllers.analytic import PD
 from scftc_cli.versions.v3.controllers.fdir import FDIR
 from scftc_cli.versions.v3.spec import UNITS
 
@@ -62,3 +64,14 @@ def test_fdir_finds_the_dead_wheel_from_its_own_residuals():
     dead = truth.codes[:, wheels] == 2
     assert np.all(flown.health.final_codes[:, wheels][dead] == 2)
     assert np.all(flown.health.first_alarm_step >= truth.onset_step)  # no alarm before the onset
+
+
+@pytest.mark.basilisk
+def test_the_basilisk_backend_flies_the_mission_like_the_fused_kernel():
+    pytest.importorskip("Basilisk")
+    bed = testbeds.testbed("scftc-v3")
+    episodes = bed.draw("train", "rod", n_faults=1, n_seeds=1)
+    ours = rollout(PD(), episodes, steps=40, record=True)
+    theirs = rollout(PD(), episodes, backend="basilisk", steps=40, record=True)
+    assert ours.error_deg is not None and theirs.error_deg is not None
+    assert np.abs(ours.error_deg - theirs.error_deg).max() < 1e-9

@@ -25,7 +25,8 @@ its start, held, as in the reference. The hub's orbit is integrated by Basilisk'
 reference uses the closed form): measured, the two orbits stay within ~1e-9 relative over an
 episode.
 
-Basilisk (``bsk``) is optional: importing this module without it raises ``ImportError``.
+Basilisk (``bsk``) is an optional extra: importing this module without it raises
+``BackendUnavailable`` with the install hint.
 """
 
 from __future__ import annotations
@@ -33,22 +34,29 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from Basilisk.architecture import messaging
-from Basilisk.simulation import (
-    GravityGradientEffector,
-    MtbEffector,
-    facetSRPDynamicEffector,
-    magneticFieldCenteredDipole,
-    reactionWheelStateEffector,
-    spacecraft,
-)
-from Basilisk.utilities import SimulationBaseClass, macros, simIncludeGravBody, simIncludeRW
 
+from scftc_cli.errors import BackendUnavailable
 from scftc_cli.sim.mrp import norm2
 from scftc_cli.versions.v2.sim.dynamics import motor_torque_nm
 from scftc_cli.versions.v3.sim.dynamics import V3PlantBase
 from scftc_cli.versions.v3.sim.environment import latitude_trig, orbit_velocity_m_s, to_body
 from scftc_cli.versions.v3.sim.mission import MissionMixin
+
+INSTALL_HINT = "Basilisk backend needs the optional extra: pip install 'scftc[basilisk]'"
+
+try:
+    from Basilisk.architecture import messaging
+    from Basilisk.simulation import (
+        GravityGradientEffector,
+        MtbEffector,
+        facetSRPDynamicEffector,
+        magneticFieldCenteredDipole,
+        reactionWheelStateEffector,
+        spacecraft,
+    )
+    from Basilisk.utilities import SimulationBaseClass, macros, simIncludeGravBody, simIncludeRW
+except ImportError as err:  # the optional extra is not installed
+    raise BackendUnavailable(INSTALL_HINT) from err
 
 ASTRONOMICAL_UNIT_M = 149597870700.0  # Basilisk's AstU: at this distance its pressure is flux / c
 HUB_MASS_KG = 1e12
