@@ -49,12 +49,12 @@ class Thresholds:
     """The detectors' settings (chosen on the train split)."""
 
     persist_steps: int = 20
-    rod_persist_steps: int = 60
+    rod_persist_steps: int = 200
     rod_dead_gain: float = 0.25
     forgetting: float = 0.99
     rod_forgetting: float = 0.998
     gain_variance_max: float = 3000.0
-    rod_variance_max: float = 0.02
+    rod_variance_max: float = 0.01
     hold_rate_rad_s: float = 3e-4
     dead_gain: float = 0.3
     half_gain: float = 0.5
@@ -67,6 +67,8 @@ class Thresholds:
     spike_count: int = 3
     warmup_steps: int = 40
     adaptive: bool = True
+    offset_rate: float = 0.3
+    burst_offset: float = 0.03
     probe: float = 0.03
     probe_steps: int = 60
     reprobe_steps: int = 300
@@ -129,6 +131,7 @@ class FDIR(MissionLaw):
         self.head_failed, self.head_degraded = Latch((n, 3), 3), Latch((n, 3), t.persist_steps)
         self.gyro_flag = Latch((n,), t.persist_steps)
         self.probe_until = np.full((n, m), -1)
+        self.offset_fast = np.zeros((n, m))
         self.gyro_bias = np.zeros((n, 3))
         self.spikes = np.zeros(n, dtype=np.int64)
         self.good_field = np.zeros((n, 3))
@@ -143,7 +146,7 @@ class FDIR(MissionLaw):
         gain = np.where(
             use, np.where(g_hat < t.dead_gain, np.where(g_hat < -t.dead_gain, g_hat, 0.0), g_hat), 1.0
         )
-        offset = np.where((flagged | t.adaptive) & (np.abs(gain) > 0.0), self.theta[..., 1], 0.0)
+        offset = np.where((flagged | t.adaptive) & (np.abs(gain) > 0.0), self.offset_fast, 0.0)
         return gain, offset, friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
 
     def unloading(self, time_left_s: np.ndarray) -> np.ndarray:
@@ -232,11 +235,20 @@ class FDIR(MissionLaw):
         usable = (np.abs(a) < 0.9) & (np.abs(tach) < 0.95 * w.omega_max_rad_s) & (self.k > 2)
         phi = np.stack([a, np.ones_like(a)], axis=-1)
         self.theta, self.p = rls_update(self.theta, self.p, phi, y, t.forgetting, usable, 2e4)
+        # a fast disturbance observer of each wheel's offset (bursts come and go within seconds)
+        fast = (1.0 - t.offset_rate) * self.offset_fast + t.offset_rate * (y - self.theta[..., 0] * a)
+        self.offset_fast = np.where(usable, fast, self.offset_fast)
         known = self.p[..., 0, 0] < t.gain_variance_max
         g_hat, offset = self.theta[..., 0], self.theta[..., 1]
         warm = self.k > t.warmup_steps
         was_failed = self.wheel_failed.raised.copy()
-        self.wheel_failed.update(warm & known & (g_hat < t.dead_gain))
+        quiet = np.abs(self.offset_fast) < t.burst_offset  # not inside a friction burst
+        self.wheel_failed.update(warm & known & quiet & (g_hat < t.dead_gain))
+        # a probe that finds the wheel working (a friction burst fooled the regression) clears it
+        cleared = self.wheel_failed.raised & (self.k == self.probe_until) & (g_hat > t.half_gain)
+        self.wheel_failed.raised &= ~cleared
+        self.wheel_failed.count[cleared] = 0
+        self.wheel_degraded.raised |= cleared
         unsure = self.wheel_failed.raised & (np.abs(g_hat) < 0.5) & (self.k % t.reprobe_steps == 0)
         start = (self.wheel_failed.raised & ~was_failed) | unsure
         self.probe_until = np.where(start, self.k + t.probe_steps, self.probe_until)
