@@ -1,7 +1,7 @@
 """Random v3 batches for tests and the benchmark script: a stand-in for the episode generator.
 
 Not the benchmark's draws (those belong to the episode generator, keyed by ``SeedSequence`` like
-v2's): plain uniform draws over the draft's ranges, enough to exercise every branch of the plant.
+v2's): plain uniform draws over wide ranges, enough to exercise every branch of the plant.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The v3 plant against Basilisk: the orbit, the field and each effector, then whole flights.
 
 Every test here flies Basilisk (``bsk`` 2.12) and skips where it is not installed. The measured
-agreements are in each test's comment and in NOTES.md.
+agreements are in each test's comment and in docs/benchmark-v3.md (section 1).
 """
 
 from __future__ import annotations

@@ -208,7 +208,7 @@ def _linear_zone_limit() -> float:
 @pytest.mark.parametrize("fraction, stable", [(0.97, True), (1.03, False)])
 def test_friction_beyond_the_rk4_linear_zone_limit_diverges(fraction, stable):
     limit = _linear_zone_limit()
-    assert limit == pytest.approx(106.4, abs=0.1)  # the draft's "~106"
+    assert limit == pytest.approx(106.4, abs=0.1)  # the stability limit of RK4 at dt = 0.5 s
     n = 2
     args = random_plant_args(np.random.default_rng(6), n, faults=False)
     args["wheel_speed0_rad_s"] = np.full((n, 4), 0.0)
