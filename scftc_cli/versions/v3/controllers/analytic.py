@@ -19,8 +19,11 @@ import numpy as np
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.mrp import cross
 from scftc_cli.versions.v2.controllers.law import AttitudeFuser, allocate, allocation, friction_nm
+from scftc_cli.versions.v2.sim.faults import sensor_code
+from scftc_cli.versions.v2.spec import V2
 from scftc_cli.versions.v3.controllers.law import (
     attitude_error,
+    null_space_commands,
     rate_limited_demand,
     rod_commands,
     rods_of,
@@ -28,6 +31,16 @@ from scftc_cli.versions.v3.controllers.law import (
     unloading_dipole,
     wheel_momentum,
 )
+from scftc_cli.versions.v3.sim.dynamics import MassProperties, OrbitGeometry, external_torque_nm
+from scftc_cli.versions.v3.sim.environment import (
+    dipole_field_t,
+    gravity_gradient_terms,
+    latitude_trig,
+    orbit_position_m,
+    to_body,
+)
+from scftc_cli.versions.v3.sim.mission import CONSTANTS
+from scftc_cli.versions.v3.spec import V3
 
 
 class MissionLaw(Controller):
@@ -66,6 +79,10 @@ class MissionLaw(Controller):
         """The observation the law flies on (the raw one unless a subclass knows better)."""
         return obs
 
+    def null_space(self, tach: np.ndarray, gain: np.ndarray) -> np.ndarray:
+        """``(n, m)`` wheel commands along the null space (``law.null_space_commands``)."""
+        return null_space_commands(tach, gain, self.context)
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
@@ -80,6 +97,7 @@ class MissionLaw(Controller):
         wheels = allocate(
             demand - rod_torque - self.disturbance_nm(sigma), matrix, gain, friction, offset, self.wheels
         )
+        wheels = np.clip(wheels + self.null_space(tach, gain), -1.0, 1.0)
         self.k += 1
         return np.concatenate([wheels, rods], axis=1)
 
@@ -102,7 +120,7 @@ class Teacher(MissionLaw):
         fault = self.episodes.fault
         self.fault = fault
         self.onset = np.asarray(fault.onset_step)
-        steps_left = np.maximum(self.episodes.fault.onset_step * 0 + _steps(context) - self.onset, 1)
+        steps_left = np.maximum(V3.steps - self.onset, 1)  # the plant's ramp: 1 at the onset, k at the end
         self.ramp_rate = (np.asarray(fault.friction_ramp_end) - 1.0) / steps_left[:, None]
 
     def active(self) -> np.ndarray:
@@ -125,8 +143,6 @@ class Oracle(Teacher):
     gyro-bias step removed, a biased or stuck head ignored (marked invalid)."""
 
     def corrected(self, obs: np.ndarray) -> np.ndarray:
-        from scftc_cli.versions.v2.sim.faults import sensor_code
-        from scftc_cli.versions.v2.spec import V2
 
         fault = self.episodes.sensor_fault
         kind, active = np.asarray(fault.kind), self.k >= np.asarray(self.episodes.fault.onset_step)
@@ -145,8 +161,6 @@ class Oracle(Teacher):
 
     def reset(self, n: int, context: Context) -> None:
         super().reset(n, context)
-        from scftc_cli.versions.v3.sim.dynamics import MassProperties, OrbitGeometry
-        from scftc_cli.versions.v3.sim.mission import CONSTANTS
 
         self.constants = CONSTANTS
         env = self.episodes.environment
@@ -168,14 +182,12 @@ class Oracle(Teacher):
         return gain, offset, friction_nm(tach, coulomb, self.wheels)
 
     def _position(self) -> np.ndarray:
-        from scftc_cli.versions.v3.sim.environment import latitude_trig, orbit_position_m
 
         env, g = self.episodes.environment, self.geometry
         cos_u, sin_u = latitude_trig(env.arg_latitude0_rad, g.mean_motion, self.k * self.context.dt_s)
         return orbit_position_m(env.semi_major_axis_m, g.p, g.q, cos_u, sin_u)
 
     def field_body(self, magnetometer: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        from scftc_cli.versions.v3.sim.environment import dipole_field_t, to_body
 
         self._field_n = dipole_field_t(
             self._position(), self.geometry.dipole_n, self.constants.environment.field_radius_m
@@ -183,8 +195,6 @@ class Oracle(Teacher):
         return to_body(sigma, self._field_n)
 
     def disturbance_nm(self, sigma: np.ndarray) -> np.ndarray:
-        from scftc_cli.versions.v3.sim.dynamics import external_torque_nm
-        from scftc_cli.versions.v3.sim.environment import gravity_gradient_terms
 
         env = self.episodes.environment
         r_hat, coefficient = gravity_gradient_terms(
@@ -194,9 +204,3 @@ class Oracle(Teacher):
             sigma, r_hat, coefficient, self._field_n, np.asarray(env.residual_dipole_am2), env,
             self.geometry, self.inertia, self.constants.environment,
         )  # fmt: skip
-
-
-def _steps(context: Context) -> int:
-    from scftc_cli.versions.v3.spec import V3
-
-    return V3.steps

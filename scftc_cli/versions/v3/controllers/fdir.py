@@ -132,6 +132,7 @@ class FDIR(MissionLaw):
         self.gyro_flag = Latch((n,), t.persist_steps)
         self.probe_until = np.full((n, m), -1)
         self.offset_fast = np.zeros((n, m))
+        self.dead_zone = np.zeros((n, m), dtype=bool)
         self.gyro_bias = np.zeros((n, 3))
         self.spikes = np.zeros(n, dtype=np.int64)
         self.good_field = np.zeros((n, 3))
@@ -249,8 +250,12 @@ class FDIR(MissionLaw):
         self.wheel_failed.raised &= ~cleared
         self.wheel_failed.count[cleared] = 0
         self.wheel_degraded.raised |= cleared
-        unsure = self.wheel_failed.raised & (np.abs(g_hat) < 0.5) & (self.k % t.reprobe_steps == 0)
-        start = (self.wheel_failed.raised & ~was_failed) | unsure
+        # a wheel that looks dead gets no command, so nothing more is learnt of it: probe it when it
+        # first looks dead, and again every reprobe_steps while it does (dead or reversed?)
+        dead_zone = warm & known & (np.abs(g_hat) < t.dead_gain)
+        unsure = dead_zone & (self.k % t.reprobe_steps == 0)
+        start = (self.wheel_failed.raised & ~was_failed) | (dead_zone & ~self.dead_zone) | unsure
+        self.dead_zone = dead_zone
         self.probe_until = np.where(start, self.k + t.probe_steps, self.probe_until)
         self.wheel_degraded.update(
             warm & ((known & (np.abs(g_hat - 1.0) > t.gain_tol)) | (np.abs(offset) > t.offset_tol))

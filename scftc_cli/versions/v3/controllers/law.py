@@ -8,6 +8,8 @@
 - ``unloading_dipole``: the cross-product momentum-unloading law ``m = k (h_w x B) / |B|^2``,
   clipped per rod to ``m_max``; its torque ``m x B`` is ``-k`` times the wheel momentum across the
   field, which the wheels then shed.
+- ``null_space_commands``: wheel commands that drain the speed the wheels hold along ``G``'s null
+  space (invisible to the hub, pumped up by offsets and friction until a wheel saturates).
 - ``rod_commands``: rod commands for a wanted dipole, through each rod's (estimated) gain.
 
 The law feeds the rods' torque forward through the wheels (``demand - m_true x B``): the rods put
@@ -27,6 +29,7 @@ from scftc_cli.versions.v2.controllers.law import split_observation as split_v2
 V2_WIDTH, MAG, TARGET, TIME_LEFT = 19, slice(19, 22), slice(22, 25), 25
 SLEW_RATE_RAD_S = np.radians(1.0)
 UNLOAD_GAIN_PER_S = 0.02
+NULL_RATE_PER_S = 0.01
 
 
 def rods_of(context: Context) -> RodKnowledge:
@@ -83,6 +86,25 @@ def unloading_dipole(
     b2 = np.maximum(norm2(field_t), 1e-18)[:, None]
     m = gain_per_s * cross(momentum_nms, field_t) / b2
     return np.clip(m, -rods.dipole_max_am2, rods.dipole_max_am2)
+
+
+def null_space_commands(
+    tach: np.ndarray, gain: np.ndarray, context: Context, rate_per_s: float = NULL_RATE_PER_S
+) -> np.ndarray:
+    """Wheel commands ``(n, m)`` that drain the wheels' speed along the null space of ``G`` (the
+    momentum the hub never sees, which offsets and friction pump up until a wheel saturates):
+    ``a = -k Js (nu . Omega) / u_max nu / g`` with ``nu = (1, 1, 1, 1) / 2`` (``G nu = 0``), through
+    the believed gains ``g`` so the hub still feels nothing; zero where a wheel is believed dead
+    (three wheels have no null space)."""
+    wheels = context.wheels
+    assert wheels is not None
+    m = len(wheels.spin_axes)
+    nu = np.full(m, 1.0 / np.sqrt(m))
+    along = tach @ nu
+    working = np.all(np.abs(gain) > 1e-6, axis=1)
+    scale = -rate_per_s * wheels.spin_inertia_kgm2 * along / wheels.u_max_nm
+    command = scale[:, None] * nu / np.where(np.abs(gain) > 1e-6, gain, 1.0)
+    return np.where(working[:, None], command, 0.0)
 
 
 def rod_commands(dipole_am2: np.ndarray, rod_gain: np.ndarray, rods: RodKnowledge) -> np.ndarray:

@@ -31,8 +31,8 @@ from scftc_cli.sim.mrp import compose
 from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S, MassProperties
 from scftc_cli.versions.v2.sim.faults import SensorFault, onset_step, sample_sensor_fault
 from scftc_cli.versions.v2.spec import V2
-from scftc_cli.versions.v3.sim.dynamics import N_RODS, PlantFault
-from scftc_cli.versions.v3.sim.environment import Environment
+from scftc_cli.versions.v3.sim.dynamics import N_RODS, V2_WHEELS, PlantFault
+from scftc_cli.versions.v3.sim.environment import EARTH_RADIUS_M, Environment
 from scftc_cli.versions.v3.sim.sensors import MAG_BIAS, MAG_SPIKE, MagnetometerFault
 from scftc_cli.versions.v3.spec import V3, AgileFaultClass, AgilePlant, AgileSensors, AgileSplit
 
@@ -192,8 +192,6 @@ def sample_environment(split: AgileSplit, plant: AgilePlant, rng: np.random.Gene
     """One episode's orbit and environment, in order: altitude, inclination, node, argument of
     latitude, Earth angle; the residual dipole's size and direction; the Sun's direction; the
     facet's normal; its centre of pressure's distance and direction."""
-    from scftc_cli.versions.v3.sim.environment import EARTH_RADIUS_M
-
     altitude = float(plant.altitude_km.sample(rng, 1)[0]) * 1e3
     inclination = math.radians(float(plant.inclination_deg.sample(rng, 1)[0]))
     raan, u0, theta = (float(rng.uniform(0.0, 2.0 * math.pi)) for _ in range(3))
@@ -269,8 +267,6 @@ def wheel_speeds(
     is ``h_b`` ``(3,)``: the minimum-norm speeds for ``h_b - I_tot omega0`` (``G G' = 4/3 I`` for
     the tetrahedral axes, so ``Omega = (3/4) G (h_b - I_tot omega0) / Js``), plus ``spread``.
     Every sum is written out (no BLAS): a draw must give the same bits on every CPU."""
-    from scftc_cli.versions.v3.sim.dynamics import V2_WHEELS
-
     total = MassProperties.of(V2_WHEELS, np.array([inertia_scale])).total_inertia_kgm2[0]
     rest = [
         h_b[r] - ((total[r, 0] * omega0[0] + total[r, 1] * omega0[1]) + total[r, 2] * omega0[2])
@@ -360,9 +356,11 @@ def pinned_episodes(
 
 
 def assemble(
-    version: str, split: str, fault_class: str, sensor: str | None, rows: list, plant
+    version: str, split: str, fault_class: str, sensor: str | None, rows: list, plant: AgilePlant
 ) -> AgileEpisodes:
-    """Stack per-episode draws into an ``AgileEpisodes`` batch (read-only)."""
+    """Stack per-episode draws (``pinned_episodes``' rows: fault and seed index, ``DrawnFault``,
+    ``sigma0``, ``omega0``, wheel speeds, environment dict, targets, sensor draw, noise seed, mission
+    draws) into an ``AgileEpisodes`` batch of ``len(rows)`` episodes (read-only)."""
     n, width = len(rows), plant.max_bursts
     faults = [r[2] for r in rows]
     starts = np.zeros((n, width), dtype=np.int64)
