@@ -22,6 +22,8 @@ from scftc_cli.versions.v2.controllers.law import AttitudeFuser, allocate, alloc
 from scftc_cli.versions.v2.sim.faults import sensor_code
 from scftc_cli.versions.v2.spec import V2
 from scftc_cli.versions.v3.controllers.law import (
+    NULL_RATE_PER_S,
+    NULL_TARGET_RAD_S,
     attitude_error,
     null_space_commands,
     rate_limited_demand,
@@ -46,6 +48,9 @@ from scftc_cli.versions.v3.spec import V3
 class MissionLaw(Controller):
     """The law every v3 calibration controller flies; subclasses say what it knows (the hooks
     below return the nominal model)."""
+
+    null_rate_per_s: float = NULL_RATE_PER_S
+    null_target_rad_s: float = NULL_TARGET_RAD_S
 
     def reset(self, n: int, context: Context) -> None:
         self.context, self.rods = context, rods_of(context)
@@ -81,7 +86,7 @@ class MissionLaw(Controller):
 
     def null_space(self, tach: np.ndarray, gain: np.ndarray) -> np.ndarray:
         """``(n, m)`` wheel commands along the null space (``law.null_space_commands``)."""
-        return null_space_commands(tach, gain, self.context)
+        return null_space_commands(tach, gain, self.context, self.null_rate_per_s, self.null_target_rad_s)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))

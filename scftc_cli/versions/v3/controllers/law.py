@@ -30,6 +30,7 @@ V2_WIDTH, MAG, TARGET, TIME_LEFT = 19, slice(19, 22), slice(22, 25), 25
 SLEW_RATE_RAD_S = np.radians(1.0)
 UNLOAD_GAIN_PER_S = 0.02
 NULL_RATE_PER_S = 0.01
+NULL_TARGET_RAD_S = 0.0
 
 
 def rods_of(context: Context) -> RodKnowledge:
@@ -89,18 +90,23 @@ def unloading_dipole(
 
 
 def null_space_commands(
-    tach: np.ndarray, gain: np.ndarray, context: Context, rate_per_s: float = NULL_RATE_PER_S
+    tach: np.ndarray,
+    gain: np.ndarray,
+    context: Context,
+    rate_per_s: float = NULL_RATE_PER_S,
+    target_rad_s: float = NULL_TARGET_RAD_S,
 ) -> np.ndarray:
     """Wheel commands ``(n, m)`` that drain the wheels' speed along the null space of ``G`` (the
     momentum the hub never sees, which offsets and friction pump up until a wheel saturates):
-    ``a = -k Js (nu . Omega) / u_max nu / g`` with ``nu = (1, 1, 1, 1) / 2`` (``G nu = 0``), through
-    the believed gains ``g`` so the hub still feels nothing; zero where a wheel is believed dead
-    (three wheels have no null space)."""
+    ``a = -k Js (nu . Omega - 2 Omega_b) / u_max nu / g`` with ``nu = (1, 1, 1, 1) / 2``
+    (``G nu = 0``): every wheel is biased by ``Omega_b = target_rad_s`` (away from zero speed,
+    where the Coulomb friction flips), through the believed gains ``g`` so the hub still feels
+    nothing; zero where a wheel is believed dead (three wheels have no null space)."""
     wheels = context.wheels
     assert wheels is not None
     m = len(wheels.spin_axes)
     nu = np.full(m, 1.0 / np.sqrt(m))
-    along = tach @ nu
+    along = tach @ nu - target_rad_s * np.sqrt(m)
     working = np.all(np.abs(gain) > 1e-6, axis=1)
     scale = -rate_per_s * wheels.spin_inertia_kgm2 * along / wheels.u_max_nm
     command = scale[:, None] * nu / np.where(np.abs(gain) > 1e-6, gain, 1.0)
