@@ -74,8 +74,9 @@ allow-userns:
 	  echo "allowed unprivileged user namespaces (kernel.apparmor_restrict_unprivileged_userns=0)"; \
 	fi
 
-# Every registered benchmark version (scftc_cli/versions), the default first.
-VERSIONS = $$($(BIN)/python -c 'from scftc_cli.versions import version_names; print(*version_names())')
+# Every published benchmark version (scftc_cli/versions; drafts, which have no board yet, left out),
+# the default first.
+VERSIONS = $$($(BIN)/python -c 'from scftc_cli.versions import published_names; print(*published_names())')
 
 reproduce: setup
 	for version in $(VERSIONS); do $(BIN)/scftc reproduce --benchmark $$version || exit 1; done

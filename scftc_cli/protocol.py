@@ -67,6 +67,35 @@ class SensorKnowledge:
     gyro_noise_rad_s: float
     gyro_bias_bound_rad_s: float
     tachometer_noise_rad_s: float
+    magnetometer_noise_t: float | None = None
+
+
+@dataclass(frozen=True)
+class RodKnowledge:
+    """What a controller knows about its magnetorquer rods (public constants).
+
+    Attributes:
+        axes: ``(r, 3)`` unit dipole axes, body frame.
+        dipole_max_am2: each rod's dipole at command 1.
+        residual_dipole_nominal_am2: ``(3,)`` the spacecraft's nominal residual dipole, body frame.
+    """
+
+    axes: np.ndarray
+    dipole_max_am2: float
+    residual_dipole_nominal_am2: np.ndarray
+
+
+@dataclass(frozen=True)
+class OrbitKnowledge:
+    """What a controller knows about each episode's orbit (circular).
+
+    Attributes:
+        altitude_m: ``(n,)`` altitude above the equatorial radius.
+        inclination_rad: ``(n,)``.
+    """
+
+    altitude_m: np.ndarray
+    inclination_rad: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -87,6 +116,8 @@ class Context:
         tau_max_nm: body-torque actuators: torque per body axis at command 1.
         wheels: reaction-wheel actuators: their constants.
         sensors: noisy sensors: their noise figures.
+        rods: magnetorquer rods: their constants.
+        orbit: each episode's orbit, where the version flies one.
         health_units: the units a controller may report the health of, in order (``health()``);
             empty where the version scores no diagnosis.
         fault: the true fault (a version's fault record), handed only to privileged controllers.
@@ -101,6 +132,8 @@ class Context:
     tau_max_nm: float | None = None
     wheels: WheelKnowledge | None = None
     sensors: SensorKnowledge | None = None
+    rods: RodKnowledge | None = None
+    orbit: OrbitKnowledge | None = None
     health_units: tuple[str, ...] = ()
     fault: Any = None
 

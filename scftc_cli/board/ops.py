@@ -44,6 +44,7 @@ from scftc_cli.registry import builtin_names, registry
 from scftc_cli.submission.isolation import sandbox_unavailable
 from scftc_cli.submission.manifest import Submission, load_submission
 from scftc_cli.submission.wire import one_line
+from scftc_cli.versions import published_names
 
 
 def _event(
@@ -258,13 +259,16 @@ def land(
 ) -> LandReport:
     """Submit every file in ``files`` that is not yet on its version's board (by sha256, any
     status) as a pending entry of that board's open round: what a maintainer runs after merging
-    pull requests that add submissions. A rejected file is reported and the others go on."""
+    pull requests that add submissions. A rejected file is reported and the others go on; so is one
+    for a draft version (``Version.draft``), which has no board."""
     report = LandReport()
     for path in files:
         label = str(path)
         try:
             sub = load_submission(path)
             benchmark = sub.manifest.benchmark
+            if benchmark not in published_names():
+                raise LeaderboardError(f"{benchmark} is a draft version: it has no board yet")
             board_path = board_for(benchmark)
             board = read_board(board_path, benchmark, missing_ok=True)
             if any(e.sha256 == sub.sha256 for e in board.entries):

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 VERSIONS: dict[str, str] = {
     "scftc-v1": "scftc_cli.versions.v1:VERSION",
     "scftc-v2": "scftc_cli.versions.v2:VERSION",
+    "scftc-v3": "scftc_cli.versions.v3:VERSION",
 }
 """Every registered version: its name and its ``Version`` record, in the order commands list them;
 the first is every command's default. ``register`` adds one at run time (tests)."""
@@ -134,6 +135,8 @@ class Version:
         definition: its written definition (a path from the repository root) and the heading of
             that document's table of every spec value.
         alias: the short name its spec keeps in ``scftc_cli.spec`` (``spec.V1``).
+        draft: still being calibrated: it has no board, and the loops over published versions
+            (``published_names``: boards, ``make reproduce``, verification) leave it out.
     """
 
     spec: BenchmarkSpec[Any, Any, Any]
@@ -147,6 +150,7 @@ class Version:
     envs: tuple[GymEnv, ...] = ()
     definition: tuple[str, str] = ("", "")
     alias: str = ""
+    draft: bool = False
 
     def __post_init__(self) -> None:
         bound = tuple(replace(c, benchmark=self.name) for c in self.controllers)
@@ -206,6 +210,12 @@ def _check(name: str, version: Version) -> None:
 def version_names() -> tuple[str, ...]:
     """Every registered version's name, the default first."""
     return tuple(VERSIONS)
+
+
+def published_names() -> tuple[str, ...]:
+    """The registered versions that are not drafts (``Version.draft``), in order: those with a
+    board, which the board commands and the Makefile's loops go over."""
+    return tuple(name for name in VERSIONS if not get_version(name).draft)
 
 
 def default_version() -> str:

@@ -1,0 +1,63 @@
+"""``scftc-v3``: the agile track (docs/benchmark-v3.md), one folder, a draft.
+
+``spec.py`` holds its numbers, ``sim/`` its simulator (seeded draws of faults, orbits and missions;
+the plant in orbit on three backends; v2's sensors plus a magnetometer; the mission's windows and
+the diagnosis truth), ``controllers/`` its calibration battery. ``VERSION`` below is what the
+layers above ask of it (``scftc_cli/versions/__init__.py``). It is marked a draft: it has no board
+yet, so the loops over published versions (boards, ``make reproduce``) leave it out.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from scftc_cli.versions import ControllerSpec, StudyPlan, Version
+from scftc_cli.versions.v3.spec import V3
+
+REGIME_RULE = (
+    "controllable: v2's heads, gyro and tachometers, plus a magnetometer whose bias does not move the "
+    "pointing (it misleads the unloading and the rods' feed-forward): every sensor class can in "
+    "principle be fought from the observation."
+)
+
+VERSION = Version(
+    spec=V3,
+    testbed="scftc_cli.versions.v3.sim.testbed:TESTBED",
+    controllers=(
+        ControllerSpec(
+            "pd",
+            "scftc_cli.versions.v3.controllers.analytic:PD",
+            "fault-unaware rate-limited PD to the window's target, rods unloading by h x B, "
+            "rod torque fed forward",
+            family="reference",
+        ),
+        ControllerSpec(
+            "fdir",
+            "scftc_cli.versions.v3.controllers.fdir:FDIR",
+            "residual FDIR: per-wheel torque residuals and gain identification, rod-gain identification, "
+            "head votes, magnetometer spikes; reports its diagnosis and reconfigures",
+            family="classical",
+        ),
+        ControllerSpec(
+            "teacher",
+            "scftc_cli.versions.v3.controllers.analytic:Teacher",
+            "privileged: the law through the true g(t) and rod gains; perfect diagnosis",
+            privileged=True,
+            family="oracle",
+        ),
+        ControllerSpec(
+            "oracle",
+            "scftc_cli.versions.v3.controllers.analytic:Oracle",
+            "privileged: the teacher plus true offsets, friction (bursts, ramps), environment torques, "
+            "true field",
+            privileged=True,
+            family="oracle",
+        ),
+    ),
+    folder=Path(__file__).resolve().parent,
+    artifact_prefix="v3/",
+    study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
+    definition=("docs/benchmark-v3.md", "## 9. The spec as data"),
+    alias="V3",
+    draft=True,
+)

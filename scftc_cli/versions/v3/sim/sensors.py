@@ -1,0 +1,188 @@
+"""scftc-v3's sensors: v2's three star-tracker heads, gyro and tachometers, plus a magnetometer.
+
+The v2 part is v2's own code (``HeadsGyroTachometers``) on v2's noise stream: for the same
+episode seed its 19 values are exactly what v2 would observe of the same true state. The
+magnetometer reads the true field in the body frame (``field_b_t`` of the plant: the field at the
+current position, rotated with the current attitude) in tesla, with white noise of
+``MAGNETOMETER_NOISE_T`` per axis, and two faults from the episode's onset on:
+
+- ``mag_bias``: a constant vector added to every reading;
+- ``mag_spike``: Basilisk's ``magnetometer`` spiking fault: each step, on each faulted axis, with
+  probability ``p`` the reading (noise and bias included) is multiplied by ``amount``
+  (Basilisk's ``spikeProbability``, default 0.1, and ``spikeAmount``, default 2).
+
+Each magnetometer gets its own streams, spawned from the episode's noise seed (spawn key ``(1,)``
+for its normals, ``(2,)`` for the spike draws), so the v2 stream (spawn key ``()``) is untouched
+and a faulted cell pairs with its healthy one episode by episode. Normals come in blocks of steps
+(the numbers of one long draw, whatever the block); spike uniforms only for spiking episodes.
+The magnetometer does not see the rods' own field (a flight magnetometer would sit on a boom or
+sample between torquing pulses).
+
+``observe_reference`` is the readable numpy definition; ``observe`` runs v2's fused kernel and a
+small numba pass for the magnetometer, the same operations in the same order: equal to the bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from scftc_cli.sim.testbed import Plant, Sensors
+from scftc_cli.versions.v2.sim.faults import SensorFault
+from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
+from scftc_cli.versions.v2.spec import V2
+
+MAGNETOMETER_NOISE_T = 50e-9
+"""White noise per axis per sample, 1 sigma (a fluxgate or good AMR magnetometer, ~50 nT)."""
+MAG_CHANNELS = 3
+BLOCK_STEPS = 50
+MAG_NONE, MAG_BIAS, MAG_SPIKE = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class MagnetometerFault:
+    """Per-episode magnetometer fault, in force from the episode's onset step on.
+
+    Attributes:
+        kind: ``(n,)`` int: ``MAG_NONE``, ``MAG_BIAS`` or ``MAG_SPIKE``.
+        bias_t: ``(n, 3)`` the constant bias, body axes, tesla (``mag_bias``).
+        spike_probability: ``(n, 3)`` per-axis probability of a spike each step (``mag_spike``;
+            0 on axes without the fault).
+        spike_amount: ``(n, 3)`` what a spike multiplies the reading by.
+    """
+
+    kind: np.ndarray
+    bias_t: np.ndarray
+    spike_probability: np.ndarray
+    spike_amount: np.ndarray
+
+    @classmethod
+    def healthy(cls, n: int) -> MagnetometerFault:
+        return cls(np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros((n, 3)), np.ones((n, 3)))
+
+
+@dataclass(frozen=True)
+class _Onset:
+    onset_step: np.ndarray
+
+
+@dataclass(frozen=True)
+class SensorEpisodes:
+    """What the sensors of a batch need of its episodes (the shape of v2's ``WheelEpisodes`` that
+    ``HeadsGyroTachometers`` reads, plus the magnetometer's fault).
+
+    Attributes:
+        onset_step: ``(n,)`` int, the first faulted step (sensor faults share the actuators').
+        sensor_fault: v2's star-tracker and gyro faults (kinds coded as in v2).
+        magnetometer: The magnetometer's fault.
+        noise_seed: ``(n, 4)`` uint32, the entropy of each episode's sensor-noise streams.
+    """
+
+    onset_step: np.ndarray
+    sensor_fault: SensorFault
+    magnetometer: MagnetometerFault
+    noise_seed: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.onset_step)
+
+    @property
+    def fault(self) -> _Onset:
+        """v2's ``episodes.fault``, as far as its sensors read it."""
+        return _Onset(np.asarray(self.onset_step))
+
+    @classmethod
+    def healthy(cls, noise_seed: np.ndarray) -> SensorEpisodes:
+        """Healthy sensors for episodes with these seeds ``(n, 4)``."""
+        n = len(noise_seed)
+        fault = SensorFault(
+            np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros((n, 3))
+        )
+        return cls(np.zeros(n, dtype=np.int64), fault, MagnetometerFault.healthy(n), np.asarray(noise_seed))
+
+
+def _stream(seed: np.ndarray, key: int) -> np.random.Generator:
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist(), spawn_key=(key,))))
+
+
+class V3Sensors(Sensors):
+    """The sensors of a batch of v3 episodes. Observation ``(n, 22)``: v2's 19 values (three head
+    MRPs, three validity flags, gyro rad/s, tachometers rad/s), then the magnetometer (3) tesla."""
+
+    def __init__(self, episodes: SensorEpisodes, noise_t: float = MAGNETOMETER_NOISE_T) -> None:
+        self.v2 = HeadsGyroTachometers(episodes, V2)  # type: ignore[arg-type]
+        self.noise_t = noise_t
+        mag = episodes.magnetometer
+        self.onset = np.ascontiguousarray(episodes.onset_step, dtype=np.int64)
+        self.biased = np.ascontiguousarray(np.asarray(mag.kind) == MAG_BIAS)
+        self.spiking = np.ascontiguousarray(np.asarray(mag.kind) == MAG_SPIKE)
+        self.bias_t = np.ascontiguousarray(mag.bias_t, dtype=np.float64)
+        self.spike_probability = np.ascontiguousarray(mag.spike_probability, dtype=np.float64)
+        self.spike_amount = np.ascontiguousarray(mag.spike_amount, dtype=np.float64)
+        seeds = np.asarray(episodes.noise_seed)
+        n = len(seeds)
+        self.streams = [_stream(seed, 1) for seed in seeds]
+        self.spike_rows = np.flatnonzero(self.spiking)
+        self.spike_streams = [_stream(seeds[e], 2) for e in self.spike_rows]
+        self.block = np.empty((n, BLOCK_STEPS, MAG_CHANNELS))
+        self.spike_block = np.ones((n, BLOCK_STEPS, MAG_CHANNELS))  # 1.0 never spikes (p < 1)
+        self.block_start = -BLOCK_STEPS
+
+    def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(n, 3)`` standard normals and ``(n, 3)`` spike uniforms of step ``k`` (in order)."""
+        if not self.block_start <= k < self.block_start + BLOCK_STEPS:
+            if k != self.block_start + BLOCK_STEPS:
+                raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
+            for e, stream in enumerate(self.streams):
+                stream.standard_normal(out=self.block[e])
+            for row, stream in zip(self.spike_rows, self.spike_streams, strict=True):
+                stream.random(out=self.spike_block[row])
+            self.block_start = k
+        j = k - self.block_start
+        return self.block[:, j], self.spike_block[:, j]
+
+    def magnetometer_reference(self, k: int, field_b_t: np.ndarray) -> np.ndarray:
+        """The magnetometer's ``(n, 3)`` readings of the true body field ``field_b_t`` ``(n, 3)``:
+        ``((B + noise) + bias)``, the bias 0.0 unless in force (added all the same), then the
+        spikes (Basilisk's order: noise, bias, faults)."""
+        z, uniform = self._draws(k)
+        faulted = (k >= self.onset)[:, None]
+        out = (field_b_t + self.noise_t * z) + np.where(faulted & self.biased[:, None], self.bias_t, 0.0)
+        spike = faulted & self.spiking[:, None] & (uniform <= self.spike_probability)
+        return np.where(spike, out * self.spike_amount, out)
+
+    def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
+        """``observe`` as numpy array operations: the readable definition, equal to the bit."""
+        head = self.v2.observe_reference(k, plant)
+        return np.concatenate([head, self.magnetometer_reference(k, plant.states()["field_b_t"])], axis=1)
+
+    def observe(self, k: int, plant: Plant) -> np.ndarray:
+        """``(n, 22)`` observation of the plant's true state at the start of step ``k``."""
+        head = self.v2.observe(k, plant)
+        z, uniform = self._draws(k)
+        out = np.empty((head.shape[0], head.shape[1] + MAG_CHANNELS))
+        out[:, : head.shape[1]] = head
+        field = np.ascontiguousarray(plant.states()["field_b_t"], dtype=np.float64)
+        _magnetometer_kernel(
+            k, field, z, uniform, self.onset, self.biased, self.spiking, self.bias_t, self.spike_probability,
+            self.spike_amount, self.noise_t, out, head.shape[1],
+        )  # fmt: skip
+        return out
+
+
+@numba.njit(cache=True)
+def _magnetometer_kernel(
+    k, field, z, uniform, onset, biased, spiking, bias, probability, amount, scale, out, col
+):
+    """``magnetometer_reference`` of every episode of step ``k`` into ``out[:, col:col + 3]``."""
+    for e in range(field.shape[0]):
+        faulted = k >= onset[e]
+        for i in range(3):
+            b = bias[e, i] if (faulted and biased[e]) else 0.0
+            v = (field[e, i] + scale * z[e, i]) + b
+            if faulted and spiking[e] and uniform[e, i] <= probability[e, i]:
+                v = v * amount[e, i]
+            out[e, col + i] = v
