@@ -17,6 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from scftc_cli.versions.v2.sim.fast import _friction, _motor  # the wheels are v2's, per wheel and bit for bit
 from scftc_cli.versions.v3.sim.dynamics import V3Constants, V3PlantBase
 
 N_WHEELS = 4  # the kernel holds the four wheels in scalars
@@ -39,25 +40,6 @@ _GAIN, _BIAS, _FMUL, _RAMP, _BMUL, _ROD = 0, 4, 8, 12, 16, 20
 FAULT_COLUMNS = 23
 # faults, ints: onset step, number of bursts, then the bursts' sorted starts, then their ends
 _ONSET, _COUNT, _BURSTS = 0, 1, 2
-
-
-@numba.njit(inline="always")
-def _friction(speed, slope, coulomb, viscous, linear):
-    """``friction_torque_nm`` for one wheel (``slope = (fC + cV wLC) / wLC``, precomputed)."""
-    if abs(speed) < linear:
-        return -(slope * speed)
-    sign = 1.0 if speed > 0.0 else (-1.0 if speed < 0.0 else 0.0)
-    return -(sign * coulomb + viscous * speed)
-
-
-@numba.njit(inline="always")
-def _motor(a, gain, bias, speed, u_max, omega_max):
-    """``motor_torque_nm`` for one wheel: clip, then speed saturation at the step start."""
-    u = (gain * a + bias) * u_max
-    u = min(max(u, -u_max), u_max)  # np.clip's definition
-    if abs(speed) >= omega_max and speed * u >= 0.0:
-        return 0.0
-    return u
 
 
 @numba.njit(inline="always")
