@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from scftc_cli.commands.app import app
-from scftc_cli.errors import UnknownNameError
+from scftc_cli.errors import UnknownNameError, UsageError
 from scftc_cli.evaluate import Cell
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import rollout
@@ -104,6 +104,11 @@ def test_v2_defaults_to_pd_and_the_teacher_and_counts_its_steps():
 
 def test_an_unknown_version_suggests_the_closest():
     with pytest.raises(UnknownNameError, match="scftc-v2"):
+        plan("scftc-v22")
+
+
+def test_a_version_without_a_cross_check_says_so():
+    with pytest.raises(UsageError, match="no cross-check is defined for scftc-v3"):
         plan("scftc-v3")
 
 
@@ -176,7 +181,8 @@ def test_v2_verdict_holds_wheel_speeds_to_the_tolerance_as_a_fraction_of_omega_m
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--benchmark", "scftc-v3"], "scftc-v2"),
+        (["--benchmark", "scftc-v22"], "scftc-v2"),
+        (["--benchmark", "scftc-v3"], "no cross-check is defined for scftc-v3"),
         (["--benchmark", "scftc-v2", "--controller", "rls_plan"], "scftc-v1 only"),
         (["--benchmark", "scftc-v2", "--controller", "teachr"], "teacher"),
     ],
