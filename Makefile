@@ -86,7 +86,7 @@ test: setup-dev lint-workflows
 	$(BIN)/ruff format --check $(SOURCES)
 	$(BIN)/mypy
 	$(BIN)/scftc schemas --check
-	SCFTC_FORBID_SKIPS=1 $(BIN)/pytest -q
+	SCFTC_FORBID_SKIPS=1 $(BIN)/pytest -q -n auto --dist worksteal
 	$(MAKE) --no-print-directory verify-boards
 
 # Re-fly every published board, the versions side by side (each re-flight runs mostly on one core).
