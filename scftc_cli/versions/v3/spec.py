@@ -118,6 +118,8 @@ class AgileSplit(WheelSplit):
             another at half dipole).
         compound_sensor: the sensor fault a ``compound`` episode adds to its ``gain_bias`` fault.
         mag_bias_t: size of a ``mag_bias`` fault's constant vector, random direction (tesla).
+        outage_duration_s: how long an ``st_outage`` keeps every head out before they come back (a
+            Sun, Earth or Moon blinding of the whole star tracker).
     """
 
     stored_momentum_nms: IntervalSet
@@ -130,6 +132,7 @@ class AgileSplit(WheelSplit):
     rod_fault: Literal["reversed", "dead_and_half"]
     compound_sensor: str
     mag_bias_t: IntervalSet
+    outage_duration_s: IntervalSet
 
 
 class AgileFaultClass(FaultClass):
@@ -194,6 +197,7 @@ V3 = BenchmarkSpec[AgilePlant, AgileSplit, AgileSensors](
             rod_fault="reversed",
             compound_sensor="st_bias",
             mag_bias_t=closed(1e-6, 5e-6),
+            outage_duration_s=closed(60.0, 300.0),
         ),
         "test": AgileSplit(
             inertia_scale=outside(0.7, 0.8, 2.0, 2.3),
@@ -214,6 +218,7 @@ V3 = BenchmarkSpec[AgilePlant, AgileSplit, AgileSensors](
             rod_fault="dead_and_half",
             compound_sensor="gyro_bias",
             mag_bias_t=_above(5e-6, 15e-6),
+            outage_duration_s=_above(300.0, 600.0),
         ),
     },
     classes=(

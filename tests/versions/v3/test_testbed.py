@@ -158,6 +158,39 @@ def test_three_windows_and_the_observation_carries_the_target_and_the_time_left(
     np.testing.assert_array_equal(sensors.targets[:, 1], e.targets[:, 1])
 
 
+@pytest.mark.parametrize("split", ["train", "test"])
+def test_an_outage_blanks_every_head_for_its_drawn_duration_then_they_report_again(split):
+    ranges = V3.splits[split]
+    sign, outage = (
+        _draw(split, "sign", n_faults=10, n_seeds=1),
+        _draw(split, "sign", "st_outage", n_faults=10, n_seeds=1),
+    )
+    onset, end = np.asarray(outage.fault.onset_step), np.asarray(outage.outage_end_step)
+    duration_s = (end - onset) * V3.dt_s
+    assert np.all(
+        ranges.outage_duration_s.contains(duration_s)
+        | ranges.outage_duration_s.contains(duration_s - V3.dt_s)
+    )
+    assert np.all(np.asarray(sign.outage_end_step) == 0)  # no outage, nothing drawn
+    # the same episodes with and without the outage: equal outside it, blank heads inside
+    first = int(onset.min())
+    rows = np.flatnonzero(onset == first)
+    sub_sign, sub_out = sign.subset(rows), outage.subset(rows)
+    last = int(min(end[rows].max() + 3, V3.steps))
+    plant_a, plant_b = BED.plant(sub_sign), BED.plant(sub_out)
+    sens_a, sens_b = BED.sensors(sub_sign), BED.sensors(sub_out)
+    command = np.zeros((len(rows), 7))
+    stop = end[rows]
+    for k in range(last):
+        a, b = sens_a.observe(k, plant_a), sens_b.observe(k, plant_b)
+        out = (k >= first) & (k < stop)
+        np.testing.assert_array_equal(b[~out], a[~out])
+        assert np.all(b[out, :12] == 0.0)
+        np.testing.assert_array_equal(b[out, 12:], a[out, 12:])
+        plant_a.step(k, command)
+        plant_b.step(k, command)
+
+
 CODES = {  # class -> the set of unit codes a faulted episode may have (beside healthy units)
     "loss": {"wheel": {1, 2}},  # the dead wheel; the others keep their drawn magnitudes
     "double": {"wheel": {1, 2}},
@@ -183,9 +216,11 @@ def test_the_diagnosis_truth_is_read_off_the_faults(split):
             assert np.all(others == 0), cls
     nominal = diagnosis_truth(_draw(split, "nominal"))
     assert np.all(nominal.codes == 0) and np.all(nominal.onset_step == V3.steps)
-    outage = diagnosis_truth(_draw(split, "sign", "st_outage"))
+    outages = _draw(split, "sign", "st_outage", n_faults=20)
+    outage = diagnosis_truth(outages)
     heads = [UNITS.index(h) for h in ("head_1", "head_2", "head_3")]
-    assert np.all(outage.codes[:, heads] == 2)
+    lasting = np.asarray(outages.outage_end_step) >= V3.steps  # failed to the end, else intermittent
+    np.testing.assert_array_equal(outage.codes[:, heads], np.where(lasting, 2, 1)[:, None] * np.ones(3))
     spikes = diagnosis_truth(_draw(split, "sign", "mag_spike"))
     assert np.all(spikes.codes[:, UNITS.index("magnetometer")] == 1)
     compound = diagnosis_truth(_draw(split, "compound"))

@@ -57,6 +57,8 @@ class AgileEpisodes(Episodes):
         targets: ``(n, windows, 3)`` each window's target attitude (inertial MRP); the first is 0.
         sensor_fault: v2's star-tracker and gyro faults (kinds coded as v2's ``sensor_code``).
         magnetometer: the magnetometer's fault.
+        outage_end_step: ``(n,)`` the first step at which an ``st_outage``'s heads are back (0 where
+            the episode has no outage; past ``steps`` where it lasts to the end).
         noise_seed: ``(n, 4)`` ``uint32``: the entropy of each episode's sensor-noise streams.
         mission_draws: ``(n,)`` how many missions were drawn until a feasible one (1 almost always).
     """
@@ -70,6 +72,7 @@ class AgileEpisodes(Episodes):
     targets: np.ndarray
     sensor_fault: SensorFault
     magnetometer: MagnetometerFault
+    outage_end_step: np.ndarray
     noise_seed: np.ndarray
     mission_draws: np.ndarray
 
@@ -281,22 +284,24 @@ def wheel_speeds(
 
 def sample_sensor(
     split: AgileSplit, sensors: AgileSensors, name: str | None, rng: np.random.Generator | None
-) -> tuple[int, int, np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
+) -> tuple[int, int, np.ndarray, np.ndarray, int, np.ndarray, np.ndarray, float]:
     """One episode's sensor fault: ``(v2 kind, head, head bias MRP, gyro step, magnetometer kind,
-    magnetometer bias (3,) T, spike probability (3,))``. v2's faults as v2 draws them; ``mag_bias``:
-    the size, then the direction; ``mag_spike`` draws nothing (its spikes come from the noise)."""
-    none = (0, 0, np.zeros(3), np.zeros(3), 0, np.zeros(3), np.zeros(3))
+    magnetometer bias (3,) T, spike probability (3,), outage duration s)``. v2's faults as v2 draws
+    them, then, for ``st_outage``, its duration; ``mag_bias``: the size, then the direction;
+    ``mag_spike`` draws nothing (its spikes come from the noise)."""
+    none = (0, 0, np.zeros(3), np.zeros(3), 0, np.zeros(3), np.zeros(3), 0.0)
     if name is None or rng is None:
         return none
     if name in V2_SENSOR_FAULTS:
         head, bias, step = sample_sensor_fault(split, name, sensors.star_tracker_heads, rng)
-        return (1 + V2_SENSOR_FAULTS.index(name), head, bias, step, 0, np.zeros(3), np.zeros(3))
+        outage = float(split.outage_duration_s.sample(rng, 1)[0]) if name == "st_outage" else 0.0
+        return (1 + V2_SENSOR_FAULTS.index(name), head, bias, step, 0, np.zeros(3), np.zeros(3), outage)
     if name == "mag_bias":
         size = float(split.mag_bias_t.sample(rng, 1)[0])
-        return (0, 0, np.zeros(3), np.zeros(3), MAG_BIAS, size * unit_vector(rng), np.zeros(3))
+        return (0, 0, np.zeros(3), np.zeros(3), MAG_BIAS, size * unit_vector(rng), np.zeros(3), 0.0)
     if name == "mag_spike":
         p = np.full(3, sensors.mag_spike_probability)
-        return (0, 0, np.zeros(3), np.zeros(3), MAG_SPIKE, np.zeros(3), p)
+        return (0, 0, np.zeros(3), np.zeros(3), MAG_SPIKE, np.zeros(3), p, 0.0)
     raise ValueError(f"unknown sensor fault {name}")
 
 
@@ -406,6 +411,9 @@ def assemble(
             spike_probability=part(6).reshape(n, 3),
             spike_amount=np.full((n, 3), V3.sensors.mag_spike_amount if V3.sensors else 1.0),
         ),
+        outage_end_step=np.where(
+            part(7) > 0.0, onset + onset_step(part(7).astype(np.float64), plant.dt_s), 0
+        ).astype(np.int64),
         noise_seed=np.array([r[9] for r in rows], dtype=np.uint32),
         mission_draws=np.array([r[10] for r in rows], dtype=np.int64),
     ).readonly()

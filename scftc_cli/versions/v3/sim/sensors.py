@@ -11,6 +11,11 @@ current position, rotated with the current attitude) in tesla, with white noise 
   probability ``p`` the reading (noise and bias included) is multiplied by ``amount``
   (Basilisk's ``spikeProbability``, default 0.1, and ``spikeAmount``, default 2).
 
+One star-tracker fault differs from v2's: an ``st_outage`` ends. Every head reads zeros with
+validity 0 from the onset to the episode's ``outage_end_step``, then reports again (v2's outage
+lasts to the end). v2's code reads the heads as healthy and this class blanks them over the
+outage, exactly as v2 blanks an outage (zeros, flag 0.0); the noise streams do not notice.
+
 Each magnetometer gets its own streams, spawned from the episode's noise seed (spawn key ``(1,)``
 for its normals, ``(2,)`` for the spike draws), so the v2 stream (spawn key ``()``) is untouched
 and a faulted cell pairs with its healthy one episode by episode. Normals come in blocks of steps
@@ -24,13 +29,14 @@ small numba pass for the magnetometer, the same operations in the same order: eq
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from scftc_cli.sim.testbed import Plant, Sensors
-from scftc_cli.versions.v2.sim.faults import SensorFault
+from scftc_cli.versions.v2.sim.faults import SensorFault, sensor_code
 from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
 from scftc_cli.versions.v2.spec import V2
 
@@ -78,12 +84,15 @@ class SensorEpisodes:
         sensor_fault: v2's star-tracker and gyro faults (kinds coded as in v2).
         magnetometer: The magnetometer's fault.
         noise_seed: ``(n, 4)`` uint32, the entropy of each episode's sensor-noise streams.
+        outage_end_step: ``(n,)`` int, the first step an ``st_outage``'s heads are back (unread
+            where the episode has no outage).
     """
 
     onset_step: np.ndarray
     sensor_fault: SensorFault
     magnetometer: MagnetometerFault
     noise_seed: np.ndarray
+    outage_end_step: np.ndarray
 
     @property
     def n(self) -> int:
@@ -101,7 +110,10 @@ class SensorEpisodes:
         fault = SensorFault(
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros((n, 3))
         )
-        return cls(np.zeros(n, dtype=np.int64), fault, MagnetometerFault.healthy(n), np.asarray(noise_seed))
+        return cls(
+            np.zeros(n, dtype=np.int64), fault, MagnetometerFault.healthy(n), np.asarray(noise_seed),
+            np.zeros(n, dtype=np.int64),
+        )  # fmt: skip
 
 
 def _stream(seed: np.ndarray, key: int) -> np.random.Generator:
@@ -113,7 +125,14 @@ class V3Sensors(Sensors):
     MRPs, three validity flags, gyro rad/s, tachometers rad/s), then the magnetometer (3) tesla."""
 
     def __init__(self, episodes: SensorEpisodes, noise_t: float = MAGNETOMETER_NOISE_T) -> None:
-        self.v2 = HeadsGyroTachometers(episodes, V2)  # type: ignore[arg-type]
+        fault = episodes.sensor_fault
+        kind = np.asarray(fault.kind)
+        self.outage = np.ascontiguousarray(kind == sensor_code(V2, "st_outage"))
+        self.outage_end = np.ascontiguousarray(episodes.outage_end_step, dtype=np.int64)
+        v2_view = dataclasses.replace(  # v2's code sees the heads healthy; ``_blank`` makes the outage
+            episodes, sensor_fault=dataclasses.replace(fault, kind=np.where(self.outage, 0, kind))
+        )
+        self.v2 = HeadsGyroTachometers(v2_view, V2)  # type: ignore[arg-type]
         self.noise_t = noise_t
         mag = episodes.magnetometer
         self.onset = np.ascontiguousarray(episodes.onset_step, dtype=np.int64)
@@ -154,14 +173,21 @@ class V3Sensors(Sensors):
         spike = faulted & self.spiking[:, None] & (uniform <= self.spike_probability)
         return np.where(spike, out * self.spike_amount, out)
 
+    def _blank(self, k: int, head: np.ndarray) -> np.ndarray:
+        """``head`` ``(n, 19)`` with every head zero and invalid where an outage is in force at
+        step ``k`` (in place)."""
+        out = np.flatnonzero(self.outage & (self.onset <= k) & (k < self.outage_end))
+        head[out, : 4 * self.v2.heads] = 0.0  # each head's MRP (3 values), then each one's flag
+        return head
+
     def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
         """``observe`` as numpy array operations: the readable definition, equal to the bit."""
-        head = self.v2.observe_reference(k, plant)
+        head = self._blank(k, self.v2.observe_reference(k, plant))
         return np.concatenate([head, self.magnetometer_reference(k, plant.states()["field_b_t"])], axis=1)
 
     def observe(self, k: int, plant: Plant) -> np.ndarray:
         """``(n, 22)`` observation of the plant's true state at the start of step ``k``."""
-        head = self.v2.observe(k, plant)
+        head = self._blank(k, self.v2.observe(k, plant))
         z, uniform = self._draws(k)
         out = np.empty((head.shape[0], head.shape[1] + MAG_CHANNELS))
         out[:, : head.shape[1]] = head

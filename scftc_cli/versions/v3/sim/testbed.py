@@ -36,6 +36,7 @@ class MissionSensors(Sensors):
                 episodes.sensor_fault,
                 episodes.magnetometer,
                 np.asarray(episodes.noise_seed),
+                np.asarray(episodes.outage_end_step),
             ),
             noise_t=suite.magnetometer_noise_t,
         )
@@ -83,7 +84,8 @@ def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
       offset or friction (constant, ramp end or bursts) is off nominal by more than the plant's
       ``health_*_tolerance`` (within it the wheel counts healthy);
     - a rod: failed if its gain is 0 or negative; degraded if it is off 1 (half dipole);
-    - a head: failed if stuck or in an outage (all three); degraded if biased;
+    - a head: failed if stuck, or in an outage (all three) that lasts to the end; degraded if
+      biased, or in an outage that ends (an intermittent unit: what it did once it may do again);
     - the gyro: degraded by a bias step; the magnetometer: degraded by a bias or spikes.
 
     An episode whose faults leave every unit healthy (a ``nominal`` one, or a ``sign`` fault that
@@ -115,7 +117,10 @@ def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
         hit = kind == sensor_code(V2, name)
         codes[rows[hit], first_head + head[hit]] = code
     outage = kind == sensor_code(V2, "st_outage")
-    codes[outage, first_head : first_head + len(HEAD_UNITS)] = FAILED
+    lasting = np.asarray(episodes.outage_end_step) >= V3.steps
+    codes[outage, first_head : first_head + len(HEAD_UNITS)] = np.where(lasting[outage], FAILED, DEGRADED)[
+        :, None
+    ]
     codes[kind == sensor_code(V2, "gyro_bias"), UNITS.index("gyro")] = DEGRADED
     codes[np.asarray(episodes.magnetometer.kind) != MAG_NONE, UNITS.index("magnetometer")] = DEGRADED
     onset = np.where(codes.any(axis=1), np.asarray(f.onset_step), V3.steps)

@@ -96,4 +96,6 @@ def random_sensor_episodes(rng: np.random.Generator, n: int, onset_step: np.ndar
         np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros((n, 3))
     )
     seeds = rng.integers(0, 2**32, size=(n, 4), dtype=np.uint32)
-    return SensorEpisodes(np.asarray(onset_step, dtype=np.int64), none, mag, seeds)
+    return SensorEpisodes(
+        np.asarray(onset_step, dtype=np.int64), none, mag, seeds, np.zeros(n, dtype=np.int64)
+    )
