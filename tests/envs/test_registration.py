@@ -23,7 +23,7 @@ def _run(code: str) -> subprocess.CompletedProcess[str]:
 
 def test_every_versions_environment_is_declared_by_its_version() -> None:
     ids = [env.id for env in environments()]
-    assert ids == ["scftc/AttitudeFTC-v1", "scftc/AttitudeFTC-v2"]
+    assert ids == ["scftc/AttitudeFTC-v1", "scftc/AttitudeFTC-v2", "scftc/AttitudeFTC-v3"]
 
 
 def test_import_gymnasium_alone_then_the_module_form_registers_every_environment() -> None:
@@ -31,7 +31,8 @@ def test_import_gymnasium_alone_then_the_module_form_registers_every_environment
         "import gymnasium as gym, sys; "
         "assert 'scftc_cli' not in sys.modules; "
         "gym.make('scftc_cli:scftc/AttitudeFTC-v1').reset(seed=0); "
-        "gym.make('scftc/AttitudeFTC-v2').reset(seed=0)"  # registered by the same import
+        "gym.make('scftc/AttitudeFTC-v2').reset(seed=0); "  # registered by the same import
+        "gym.make('scftc/AttitudeFTC-v3').reset(seed=0)"
     )
     assert "out of date" not in done.stderr, done.stderr
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scftc_cli.versions import ControllerSpec, StudyPlan, Version
+from scftc_cli.versions import ControllerSpec, GymEnv, StudyPlan, Version
 from scftc_cli.versions.v3.spec import V3
 
 REGIME_RULE = (
@@ -57,6 +57,13 @@ VERSION = Version(
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v3/",
     study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
+    envs=(
+        GymEnv(
+            "scftc/AttitudeFTC-v3",
+            "scftc_cli.versions.v3.envs:AttitudeFTCv3Env",
+            "scftc_cli.versions.v3.envs:AttitudeFTCv3VectorEnv",
+        ),
+    ),
     definition=("docs/benchmark-v3.md", "## 9. The spec as data"),
     alias="V3",
     draft=True,
