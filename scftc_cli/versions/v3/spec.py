@@ -143,7 +143,8 @@ class AgileFaultClass(FaultClass):
         double: one wheel dead and another degraded (``double_gain_magnitude``).
         intermittent: one wheel's friction bursts.
         incipient: one wheel's friction ramps up.
-        rod: one or two rods faulted (``rod_fault``).
+        rod: one or two rods faulted (``rod_fault``); the ``rod`` class pairs them with a dead
+            wheel (``dead``), so that the three wheels left need the rods' unloading.
         compound: a sensor fault (``compound_sensor``) at the same onset.
         healthy: no fault at all (``nominal``).
     """
@@ -231,7 +232,7 @@ V3 = BenchmarkSpec[AgilePlant, AgileSplit, AgileSensors](
         AgileFaultClass(name="double", magnitude=False, reversals=False, double=True),
         AgileFaultClass(name="intermittent", magnitude=False, reversals=False, intermittent=True),
         AgileFaultClass(name="incipient", magnitude=False, reversals=False, incipient=True),
-        AgileFaultClass(name="rod", magnitude=False, reversals=False, rod=True),
+        AgileFaultClass(name="rod", magnitude=False, reversals=False, rod=True, dead=True),
         AgileFaultClass(name="compound", bias=True, compound=True),
     ),
     sensor_classes=(

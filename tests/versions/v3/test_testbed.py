@@ -83,9 +83,11 @@ def test_drawn_episodes_lie_in_their_split(split):
     assert np.all((np.asarray(double.fault.gain) == 0).sum(axis=1) == 1)
     ramp = _draw(split, "incipient").fault.friction_ramp_end
     assert np.all(ranges.friction_ramp_end.contains(np.asarray(ramp).max(axis=1)))
-    rods = np.sort(np.asarray(_draw(split, "rod").fault.rod_gain), axis=1)
+    rod = _draw(split, "rod")
+    rods = np.sort(np.asarray(rod.fault.rod_gain), axis=1)
     expected = [-1.0, 1.0, 1.0] if ranges.rod_fault == "reversed" else [0.0, 0.5, 1.0]
     assert np.all(rods == expected)
+    assert np.all(np.sort(np.asarray(rod.fault.gain), axis=1) == [0.0, 1.0, 1.0, 1.0])  # and one dead wheel
 
 
 def test_bursts_start_at_the_onset_and_stay_inside_the_episode():
@@ -196,7 +198,7 @@ CODES = {  # class -> the set of unit codes a faulted episode may have (beside h
     "double": {"wheel": {1, 2}},
     "intermittent": {"wheel": {1}},
     "incipient": {"wheel": {1}},
-    "rod": {"rod": {2}},
+    "rod": {"rod": {2}, "wheel": {2}},  # a rod fault and a dead wheel
 }
 
 
@@ -205,15 +207,17 @@ def test_the_diagnosis_truth_is_read_off_the_faults(split):
     assert len(UNITS) == 12 and V3.diagnosis is not None and V3.diagnosis.units == UNITS
     for cls, expected in CODES.items():
         truth = diagnosis_truth(_draw(split, cls))
+        touched = []
         for kind, codes in expected.items():
             columns = [i for i, u in enumerate(UNITS) if u.startswith(kind)]
+            touched += columns
             faulted = truth.codes[:, columns]
             assert set(np.unique(faulted[faulted > 0])) <= codes | (
                 {1} if split == "test" and kind == "rod" else set()
             )
             assert np.all(faulted.max(axis=1) > 0), cls
-            others = np.delete(truth.codes, columns, axis=1)
-            assert np.all(others == 0), cls
+        others = np.delete(truth.codes, touched, axis=1)
+        assert np.all(others == 0), cls
     nominal = diagnosis_truth(_draw(split, "nominal"))
     assert np.all(nominal.codes == 0) and np.all(nominal.onset_step == V3.steps)
     outages = _draw(split, "sign", "st_outage", n_faults=20)
