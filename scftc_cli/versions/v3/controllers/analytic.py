@@ -88,10 +88,20 @@ class MissionLaw(Controller):
         """``(n, m)`` wheel commands along the null space (``law.null_space_commands``)."""
         return null_space_commands(tach, gain, self.context, self.null_rate_per_s, self.null_target_rad_s)
 
+    def demand(self, error: np.ndarray, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
+        """The body torque demand ``(n, 3)`` N m for the error to the target ``(n, 3)`` MRP (the rate-
+        limited PD with its gyroscopic feed-forward unless a subclass adds to it)."""
+        return rate_limited_demand(error, gyro, tach, self.context)
+
+    def commanded(self, error: np.ndarray, wheels: np.ndarray) -> None:
+        """Told the step's clipped wheel commands ``(n, m)`` and the error they answered (nothing to
+        do unless a subclass keeps state on them)."""
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        demand = rate_limited_demand(attitude_error(sigma, target), gyro, tach, self.context)
+        error = attitude_error(sigma, target)
+        demand = self.demand(error, gyro, tach)
         field = self.field_body(magnetometer, sigma)
         rod_gain = self.rod_gain()
         wanted = unloading_dipole(wheel_momentum(tach, self.context), field, self.rods)
@@ -103,6 +113,7 @@ class MissionLaw(Controller):
             demand - rod_torque - self.disturbance_nm(sigma), matrix, gain, friction, offset, self.wheels
         )
         wheels = np.clip(wheels + self.null_space(tach, gain), -1.0, 1.0)
+        self.commanded(error, wheels)
         self.k += 1
         return np.concatenate([wheels, rods], axis=1)
 

@@ -1,0 +1,37 @@
+"""What ``scftc-v3``'s tunable ports are tuned over (``scftc_cli/training/tuning.py`` searches it).
+
+The same search, objective and effort as v1's and v2's (differential evolution over the same
+boxes, 12 faults x 3 seeds per cell), on the pinned train cells of all eleven actuator classes,
+``nominal`` included (a port that hurts a healthy spacecraft pays for it), and, for ``pid``, whose
+integrator is what acts on a gyro-bias step, the ``sign+gyro_bias`` sensor cell, as on v2. A v3
+episode is six times a v2 one (2400 steps), so a full tuning run costs about six times v2's.
+"""
+
+from __future__ import annotations
+
+from scftc_cli.training.tuning import TuneBudget, TuneSpec, Tuning
+from scftc_cli.versions.v1.training import tuning as v1
+from scftc_cli.versions.v2.controllers.pid import PIDParams
+from scftc_cli.versions.v3.controllers import pid
+from scftc_cli.versions.v3.spec import V3
+
+BUDGETS: dict[str, TuneBudget] = {
+    "quick": TuneBudget(n_faults=1, n_seeds=1, popsize=1, maxiter=1, final_faults=1, final_seeds=1),
+    "full": TuneBudget(n_faults=12, n_seeds=3, popsize=10, maxiter=40, final_faults=50, final_seeds=10),
+}
+
+CLASSES: tuple[str, ...] = tuple(V3.fault_classes)
+
+SPECS: dict[str, TuneSpec] = {
+    pid.NAME: TuneSpec(
+        pid.NAME,
+        PIDParams,
+        pid.PID,
+        v1.SPECS[pid.NAME].space,
+        benchmark=V3.version,
+        classes=(*CLASSES, "sign+gyro_bias"),
+    ),
+}
+"""The ``scftc-v3`` ports tuned here, over v1's boxes."""
+
+TUNING = Tuning(specs=SPECS, budgets=BUDGETS, score_sensor_cells=True)
