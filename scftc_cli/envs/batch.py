@@ -1,5 +1,5 @@
-"""What the gymnasium environments of the versions with noisy sensors (``scftc-v2``, ``scftc-v3``)
-share: a batch of benchmark episodes flown on the version's own testbed (``EpisodeBatch``), the
+"""What the gymnasium environments of the versions with noisy sensors (a reaction-wheel plant read
+through star-tracker heads and a gyro) share: a batch of benchmark episodes flown on the version's own testbed (``EpisodeBatch``), the
 single-episode ``gymnasium.Env`` and the vector environment around it, the shaped reward on the
 measured state and the checks of actions and dtypes. A version says how it draws fresh episodes,
 what its measured error is and what its observations hold (``EpisodeBatch``'s abstract parts);
