@@ -1,7 +1,8 @@
 """What the gymnasium environments of the versions with noisy sensors (a reaction-wheel plant read
-through star-tracker heads and a gyro) share: a batch of benchmark episodes flown on the version's own testbed (``EpisodeBatch``), the
-single-episode ``gymnasium.Env`` and the vector environment around it, the shaped reward on the
-measured state and the checks of actions and dtypes. A version says how it draws fresh episodes,
+through star-tracker heads and a gyro) share: a batch of benchmark episodes flown on the
+version's own testbed (``EpisodeBatch``), the single-episode ``gymnasium.Env`` and the vector
+environment around it, the shaped reward on the measured state and the checks of actions and
+dtypes. A version says how it draws fresh episodes,
 what its measured error is and what its observations hold (``EpisodeBatch``'s abstract parts);
 everything else is here, once. Imported only by the versions' environment modules (so
 ``import scftc_cli`` never imports gymnasium).
