@@ -187,14 +187,27 @@ def test_eval_is_deterministic(name: str) -> None:
     assert first.result == again.result
 
 
+SHORTER_QUICK = {  # a run's determinism does not depend on its length: fewer iterations, same code
+    "rma_student": ("scftc_cli.versions.v1.training.rma", {"iterations": 4, "episodes": 32, "eval_every": 2}),
+    "rma_dob": ("scftc_cli.versions.v1.training.rma", {"iterations": 4, "episodes": 32, "eval_every": 2}),
+    "e2e_ppo": ("scftc_cli.versions.v1.training.ppo", {"total_timesteps": 8 * 400, "eval_faults": 4}),
+}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", LEARNED)
-def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path) -> None:
+def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path, monkeypatch) -> None:
     pytest.importorskip("torch")
+    import dataclasses
+    import importlib
+
     from scftc_cli.training import TrainRequest, get_trainer
 
     if name == "e2e_ppo":
         pytest.importorskip("sb3_contrib")
+    module, shorter = SHORTER_QUICK[name]
+    budgets = importlib.import_module(module).BUDGETS
+    monkeypatch.setitem(budgets, "quick", dataclasses.replace(budgets["quick"], **shorter))
     paths = []
     for run in ("a", "b"):
         out = tmp_path / run / f"{name}.npz"

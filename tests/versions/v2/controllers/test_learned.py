@@ -354,12 +354,22 @@ def test_a_latch_frozen_on_the_healthy_wheel_reopens_at_a_late_change(name: str)
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["rma_dob", "e2e_ppo"])
-def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path) -> None:
+def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path, monkeypatch) -> None:
     pytest.importorskip("torch")
     if name == "e2e_ppo":
         pytest.importorskip("gymnasium")
+    import dataclasses
+    import importlib
+
     from scftc_cli.training import TrainRequest, get_trainer
 
+    # a run's determinism does not depend on its length: fewer iterations, the same code
+    module, shorter = {
+        "rma_dob": ("scftc_cli.versions.v2.training.rma", {"iterations": 4, "eval_every": 2}),
+        "e2e_ppo": ("scftc_cli.versions.v2.training.ppo", {"rollouts": 2, "eval_every": 1}),
+    }[name]
+    budgets = importlib.import_module(module).BUDGETS
+    monkeypatch.setitem(budgets, "quick", dataclasses.replace(budgets["quick"], **shorter))
     paths = []
     for run in ("a", "b"):
         out = tmp_path / run / f"{name}.npz"
