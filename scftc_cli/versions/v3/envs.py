@@ -35,7 +35,7 @@ import numpy as np
 from gymnasium import spaces
 
 from scftc_cli.envs.batch import BatchEnv, BatchVectorEnv, EpisodeBatch
-from scftc_cli.versions.v2.envs import GYRO_BOUND_RAD_S, TACHOMETER_BOUND_RAD_S
+from scftc_cli.versions.v2.envs import WheelBatch
 from scftc_cli.versions.v3.controllers.law import TARGET, attitude_error
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes, pinned_episodes
 from scftc_cli.versions.v3.sim.testbed import TESTBED
@@ -85,22 +85,16 @@ class MissionBatch(EpisodeBatch):
 
     @classmethod
     def observation_space(cls, include_prev_action: bool, dtype: type) -> spaces.Box:
-        heads = V3.sensors.star_tracker_heads if V3.sensors else 0
-        low = (
-            [-1.0] * 3 * heads  # head MRPs on the shadow-switched branch: |sigma| <= 1
-            + [0.0] * heads
-            + [-GYRO_BOUND_RAD_S] * 3
-            + [-TACHOMETER_BOUND_RAD_S] * PLANT.n_wheels
-            + [-MAGNETOMETER_BOUND_T] * 3
-            + [-1.0] * 3  # the target MRP
-            + [0.0]  # the time left in the window
-            + ([-1.0] * ACTION_DIM if include_prev_action else [])
+        lead = WheelBatch.observation_space(False, dtype)  # v2's 19 readings lead, bounded as v2 bounds them
+        low = [-MAGNETOMETER_BOUND_T] * 3 + [-1.0] * 3 + [0.0]  # the magnetometer, target MRP, time left
+        high = [MAGNETOMETER_BOUND_T] * 3 + [1.0] * 3 + [WINDOW_S]
+        if include_prev_action:
+            low, high = low + [-1.0] * ACTION_DIM, high + [1.0] * ACTION_DIM
+        return spaces.Box(
+            np.concatenate([lead.low, np.array(low, dtype=dtype)]),
+            np.concatenate([lead.high, np.array(high, dtype=dtype)]),
+            dtype=dtype,
         )
-        low_arr: np.ndarray = np.array(low, dtype=dtype)
-        high_arr = -low_arr
-        high_arr[3 * heads : 4 * heads] = 1.0
-        high_arr[V3.obs_dim - 1] = WINDOW_S
-        return spaces.Box(low_arr, high_arr, dtype=dtype)
 
     def draw(self, rng: np.random.Generator) -> AgileEpisodes:
         return sample_episodes(rng, self.n, self.split, self.fault_classes, self.sensor_faults)

@@ -41,9 +41,22 @@ def random_environment(rng: np.random.Generator, n: int) -> Environment:
     )
 
 
-def random_faults(rng: np.random.Generator, n: int, steps: int = 2400, bursts: int = 6) -> PlantFault:
+def random_faults(
+    rng: np.random.Generator,
+    n: int,
+    steps: int = 2400,
+    bursts: int = 6,
+    *,
+    bursts_start_below: int | None = None,
+    sort_bursts: bool = True,
+    longest_burst: int = 120,
+    onset_below: int | None = None,
+) -> PlantFault:
     """Every kind of v3 actuator fault, mixed: scaled and reversed gains, offsets, a dead wheel in
-    every fifth episode, constant friction, ramps, bursts, rod gains in {1, -1, 0, 0.5}."""
+    every fifth episode, constant friction, ramps, bursts, rod gains in {1, -1, 0, 0.5}. Bursts
+    start below ``bursts_start_below`` (default ``steps``; sorted per episode unless told not to)
+    and last less than ``longest_burst`` steps (some empty); onsets fall below ``onset_below``
+    (default half the episode)."""
     m = 4
     sign = np.where(rng.random((n, m)) < 0.2, -1.0, 1.0)
     gain = sign * rng.uniform(0.3, 2.0, (n, m))
@@ -54,8 +67,9 @@ def random_faults(rng: np.random.Generator, n: int, steps: int = 2400, bursts: i
     friction[rows, wheel] = rng.uniform(1.0, 20.0, n)
     ramp[rows, (wheel + 1) % m] = rng.uniform(1.0, 60.0, n)
     burst[rows, (wheel + 2) % m] = rng.uniform(10.0, 60.0, n)
-    start = np.sort(rng.integers(0, steps, (n, bursts)), axis=1)
-    end = start + rng.integers(0, 120, (n, bursts))
+    start = rng.integers(0, steps if bursts_start_below is None else bursts_start_below, (n, bursts))
+    start = np.sort(start, axis=1) if sort_bursts else start
+    end = start + rng.integers(0, longest_burst, (n, bursts))
     return PlantFault(
         gain=gain,
         bias=rng.uniform(-0.3, 0.3, (n, m)),
@@ -65,7 +79,7 @@ def random_faults(rng: np.random.Generator, n: int, steps: int = 2400, bursts: i
         burst_start_step=start,
         burst_end_step=end,
         rod_gain=rng.choice(np.array([1.0, -1.0, 0.0, 0.5]), (n, 3)),
-        onset_step=rng.integers(0, steps // 2, n),
+        onset_step=rng.integers(0, steps // 2 if onset_below is None else onset_below, n),
     )
 
 

@@ -10,6 +10,7 @@ from scftc_cli.sim.mrp import cross, to_dcm
 from scftc_cli.versions.v2.sim.dynamics import friction_torque_nm
 from scftc_cli.versions.v3.sim.dynamics import PlantFault, V3Constants, V3PlantBase
 from scftc_cli.versions.v3.sim.environment import Environment
+from tests.versions.v3.sim.demo import random_faults
 
 CONSTANTS = V3Constants()
 WHEELS = CONSTANTS.wheels
@@ -81,28 +82,8 @@ def command(
 def rich_faults(n: int, seed: int, bursts: int = 4) -> PlantFault:
     """Faults that exercise every branch of the fault logic within a few hundred steps: early
     onsets, reversed/scaled/dead wheels, offsets, constant friction, ramps up to 60x, bursts
-    (overlapping and empty ones too), rod gains in {1, -1, 0, 0.5}."""
-    rng = np.random.default_rng(seed)
-    m = 4
-    sign = np.where(rng.random((n, m)) < 0.2, -1.0, 1.0)
-    gain = sign * rng.uniform(0.3, 2.0, (n, m))
-    gain[::5, 2] = 0.0
-    rows = np.arange(n)
-    wheel = rng.integers(0, m, n)
-    friction, ramp, burst = np.ones((n, m)), np.ones((n, m)), np.ones((n, m))
-    friction[rows, wheel] = rng.uniform(1.0, 20.0, n)
-    ramp[rows, (wheel + 1) % m] = rng.uniform(1.0, 60.0, n)
-    burst[rows, (wheel + 2) % m] = rng.uniform(10.0, 60.0, n)
-    start = rng.integers(0, 300, (n, bursts))
-    end = start + rng.integers(0, 60, (n, bursts))  # some empty (end == start), some overlapping
-    return PlantFault(
-        gain=gain,
-        bias=rng.uniform(-0.3, 0.3, (n, m)),
-        friction_multiplier=friction,
-        friction_ramp_end=ramp,
-        burst_multiplier=burst,
-        burst_start_step=start,
-        burst_end_step=end,
-        rod_gain=rng.choice(np.array([1.0, -1.0, 0.0, 0.5]), (n, 3)),
-        onset_step=rng.integers(0, 120, n),
-    )
+    (overlapping and empty ones too), rod gains in {1, -1, 0, 0.5} (``demo.random_faults``)."""
+    return random_faults(
+        np.random.default_rng(seed), n, bursts=bursts, bursts_start_below=300, sort_bursts=False,
+        longest_burst=60, onset_below=120,
+    )  # fmt: skip
