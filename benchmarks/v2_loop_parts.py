@@ -28,6 +28,7 @@ import numpy as np
 
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.testbed import testbed
+from scftc_cli.versions.v2.controllers import law
 from scftc_cli.versions.v2.sim import fast, sensors
 from scftc_cli.versions.v2.spec import V2
 
@@ -71,7 +72,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/v2_loop_parts.json"))
     args = parser.parse_args()
-    fast.PARALLEL_MIN_BATCH = sensors.PARALLEL_MIN_BATCH = sys.maxsize  # serial kernels: CPU time is work
+    # serial kernels: CPU time is work
+    fast.PARALLEL_MIN_BATCH = sensors.PARALLEL_MIN_BATCH = law.PARALLEL_MIN_BATCH = sys.maxsize
     one_run(8, 3)  # compile or load the kernels
     load_before = os.getloadavg()[0]
     runs = [one_run(args.batch, args.steps) for _ in range(max(1, args.repeats))]

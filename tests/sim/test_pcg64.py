@@ -40,3 +40,27 @@ def test_fill_continues_where_it_stopped():
 def test_only_pcg64_streams_are_taken():
     with pytest.raises(ValueError, match="PCG64"):
         pcg64.states_of([np.random.Generator(np.random.MT19937(0))])
+
+
+def test_seeding_is_seedsequence_and_pcg64_to_the_bit():
+    rng = np.random.default_rng(5)
+    entropy = rng.integers(0, 2**32, size=(2000, 4), dtype=np.uint32)
+    entropy[:3] = 0  # zero words (SeedSequence keeps a zero as one word)
+    entropy[3:6] = 2**32 - 1
+    entropy[6:9, :2] = 0
+    states = pcg64.seeded_states(entropy)
+    generators = [
+        np.random.Generator(np.random.PCG64(np.random.SeedSequence(row.tolist()))) for row in entropy
+    ]
+    np.testing.assert_array_equal(states, pcg64.states_of(generators))
+    uniforms = np.empty((2000, 3))
+    pcg64.fill_uniform(states, -0.25, 0.25, uniforms)
+    np.testing.assert_array_equal(uniforms, np.stack([g.uniform(-0.25, 0.25, 3) for g in generators]))
+    np.testing.assert_array_equal(states, pcg64.states_of(generators))
+
+
+def test_seeding_takes_only_four_uint32_words():
+    with pytest.raises(ValueError, match=r"\(n, 4\) uint32"):
+        pcg64.seeded_states(np.zeros((3, 5), dtype=np.uint32))
+    with pytest.raises(ValueError, match=r"\(n, 4\) uint32"):
+        pcg64.seeded_states(np.zeros((3, 4), dtype=np.int64))

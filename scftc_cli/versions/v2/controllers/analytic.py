@@ -12,15 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from scftc_cli.protocol import Context, Controller
-from scftc_cli.versions.v2.controllers.law import (
-    AttitudeFuser,
-    allocate,
-    allocation,
-    friction_nm,
-    split_observation,
-    torque_demand,
-    wheels_of,
-)
+from scftc_cli.versions.v2.controllers.law import AnalyticLaw, allocation, wheels_of
 
 
 class PD(Controller):
@@ -28,17 +20,14 @@ class PD(Controller):
     feed-forward at the nominal ``fC0``."""
 
     def reset(self, n: int, context: Context) -> None:
-        self.context, self.wheels = context, wheels_of(context)
-        self.fuser = AttitudeFuser(n)
-        self.gain = np.ones((n, len(self.wheels.spin_axes)))
-        self.allocation = allocation(self.gain, self.wheels)
+        wheels = wheels_of(context)
+        m = len(wheels.spin_axes)
+        gain = np.ones((n, m))
+        nominal = (allocation(gain, wheels), gain, np.full((n, m), wheels.coulomb_nm), np.zeros((n, m)))
+        self.law = AnalyticLaw(n, context, nominal, nominal, np.zeros(n, dtype=np.int64))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        heads, valid, gyro, tach = split_observation(obs)
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        demand = torque_demand(sigma, gyro, tach, self.context)
-        friction = friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
-        return allocate(demand, self.allocation, self.gain, friction, 0.0, self.wheels)
+        return self.law.command(obs)
 
 
 class Teacher(Controller):
@@ -51,34 +40,21 @@ class Teacher(Controller):
     def reset(self, n: int, context: Context) -> None:
         if context.fault is None:
             raise ValueError("a privileged controller needs the true fault in its context")
-        self.context, self.wheels = context, wheels_of(context)
-        fault = context.fault
-        m = len(self.wheels.spin_axes)
-        self.fuser = AttitudeFuser(n)
-        self.onset = np.asarray(fault.onset_step)
-        self.gain_before, self.gain_after = np.ones((n, m)), np.asarray(fault.gain)
-        self.healthy = allocation(self.gain_before, self.wheels)  # constant: computed once
-        self.faulted = allocation(self.gain_after, self.wheels)
-        nominal = np.full((n, m), self.wheels.coulomb_nm)
+        wheels, fault = wheels_of(context), context.fault
+        m = len(wheels.spin_axes)
+        healthy, gain_after = np.ones((n, m)), np.asarray(fault.gain)
+        nominal, no_bias = np.full((n, m), wheels.coulomb_nm), np.zeros((n, m))
         if self.knows_offsets_and_friction:
-            self.coulomb_after = self.wheels.coulomb_nm * np.asarray(fault.friction_multiplier)
-            self.bias_after = np.asarray(fault.bias)
+            coulomb_after = wheels.coulomb_nm * np.asarray(fault.friction_multiplier)
+            bias_after = np.asarray(fault.bias)
         else:
-            self.coulomb_after, self.bias_after = nominal, np.zeros((n, m))
-        self.coulomb_before, self.bias_before = nominal, np.zeros((n, m))
-        self.k = 0
+            coulomb_after, bias_after = nominal, no_bias
+        before = (allocation(healthy, wheels), healthy, nominal, no_bias)
+        after = (allocation(gain_after, wheels), gain_after, coulomb_after, bias_after)
+        self.law = AnalyticLaw(n, context, before, after, np.asarray(fault.onset_step))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        heads, valid, gyro, tach = split_observation(obs)
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        demand = torque_demand(sigma, gyro, tach, self.context)
-        after = (self.k >= self.onset)[:, None]
-        matrix = np.where(after[:, :, None], self.faulted, self.healthy)
-        coulomb = np.where(after, self.coulomb_after, self.coulomb_before)
-        bias = np.where(after, self.bias_after, self.bias_before)
-        gain = np.where(after, self.gain_after, self.gain_before)
-        self.k += 1
-        return allocate(demand, matrix, gain, friction_nm(tach, coulomb, self.wheels), bias, self.wheels)
+        return self.law.command(obs)
 
 
 class BiasOracle(Teacher):

@@ -26,6 +26,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.sums import einsum3, gemm4
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
 KD_S = 0.14
@@ -128,59 +129,75 @@ def _max(a: float, b: float) -> float:
 
 @numba.njit(cache=True)
 def _fuse(sigma, heads, valid, gyro, last_gyro, started, dt):  # pragma: no cover - compiled
-    n = sigma.shape[0]
-    out = np.empty((n, 3))
-    prop = np.empty(3)
-    aligned = np.empty((3, 3))
-    for e in range(n):
-        s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
-        if started:
-            p0 = 0.5 * (last_gyro[e, 0] + gyro[e, 0]) * dt
-            p1 = 0.5 * (last_gyro[e, 1] + gyro[e, 1]) * dt
-            p2 = 0.5 * (last_gyro[e, 2] + gyro[e, 2]) * dt
-            scale = 1.0 + (p0 * p0 + p1 * p1 + p2 * p2) / 48.0
-            q0, q1, q2 = 0.25 * p0 * scale, 0.25 * p1 * scale, 0.25 * p2 * scale
-            a2 = s0 * s0 + s1 * s1 + s2 * s2
-            b2 = q0 * q0 + q1 * q1 + q2 * q2
-            ab = s0 * q0 + s1 * q1 + s2 * q2
-            c0 = q1 * s2 - q2 * s1  # cross(second, first)
-            c1 = q2 * s0 - q0 * s2
-            c2 = q0 * s1 - q1 * s0
-            den = 1.0 + a2 * b2 - 2.0 * ab
-            r0 = ((1.0 - a2) * q0 + (1.0 - b2) * s0 - 2.0 * c0) / den
-            r1 = ((1.0 - a2) * q1 + (1.0 - b2) * s1 - 2.0 * c1) / den
-            r2 = ((1.0 - a2) * q2 + (1.0 - b2) * s2 - 2.0 * c2) / den
-            r = r0 * r0 + r1 * r1 + r2 * r2
-            if r > 1.0:
-                r0, r1, r2 = -r0 / r, -r1 / r, -r2 / r
-            prop[0], prop[1], prop[2] = r0, r1, r2
-        else:
-            prop[0], prop[1], prop[2] = s0, s1, s2
-        count = 0
-        for h in range(3):
-            h0, h1, h2 = heads[e, h, 0], heads[e, h, 1], heads[e, h, 2]
-            m2 = h0 * h0 + h1 * h1 + h2 * h2
-            d = m2 if m2 > 0.0 else 1.0
-            w0, w1, w2 = -h0 / d, -h1 / d, -h2 / d
-            x0, x1, x2 = w0 - prop[0], w1 - prop[1], w2 - prop[2]
-            y0, y1, y2 = h0 - prop[0], h1 - prop[1], h2 - prop[2]
-            if (x0 * x0 + x1 * x1 + x2 * x2) < (y0 * y0 + y1 * y1 + y2 * y2) and m2 > 0.0:
-                aligned[h, 0], aligned[h, 1], aligned[h, 2] = w0, w1, w2
-            else:
-                aligned[h, 0], aligned[h, 1], aligned[h, 2] = h0, h1, h2
-            if valid[e, h]:
-                count += 1
-        for i in range(3):
-            a, b, c = aligned[0, i], aligned[1, i], aligned[2, i]
-            if count == 3:
-                out[e, i] = _max(_min(a, b), _min(_max(a, b), c))
-            elif count > 0:
-                total = a * (1.0 if valid[e, 0] else 0.0) + b * (1.0 if valid[e, 1] else 0.0)
-                total = total + c * (1.0 if valid[e, 2] else 0.0)
-                out[e, i] = total / count
-            else:
-                out[e, i] = prop[i]
+    out = np.empty(sigma.shape)
+    heads = heads.reshape(sigma.shape[0], 9)
+    for e in range(sigma.shape[0]):
+        _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, out)
     return out
+
+
+@numba.njit(inline="always")
+def _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, out):  # pragma: no cover
+    """``AttitudeFuser``'s step for episode ``e``, into ``out[e]``; ``heads`` ``(n, 9)`` (three
+    MRPs per row), ``valid`` read as ``> 0.5`` (booleans, or the observation's 0/1 flags).
+    ``last_gyro[e]`` is read here and nowhere after (the caller may then overwrite it)."""
+    s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+    if started:
+        p0 = 0.5 * (last_gyro[e, 0] + gyro[e, 0]) * dt
+        p1 = 0.5 * (last_gyro[e, 1] + gyro[e, 1]) * dt
+        p2 = 0.5 * (last_gyro[e, 2] + gyro[e, 2]) * dt
+        scale = 1.0 + (p0 * p0 + p1 * p1 + p2 * p2) / 48.0
+        q0, q1, q2 = 0.25 * p0 * scale, 0.25 * p1 * scale, 0.25 * p2 * scale
+        a2 = s0 * s0 + s1 * s1 + s2 * s2
+        b2 = q0 * q0 + q1 * q1 + q2 * q2
+        ab = s0 * q0 + s1 * q1 + s2 * q2
+        c0 = q1 * s2 - q2 * s1  # cross(second, first)
+        c1 = q2 * s0 - q0 * s2
+        c2 = q0 * s1 - q1 * s0
+        den = 1.0 + a2 * b2 - 2.0 * ab
+        r0 = ((1.0 - a2) * q0 + (1.0 - b2) * s0 - 2.0 * c0) / den
+        r1 = ((1.0 - a2) * q1 + (1.0 - b2) * s1 - 2.0 * c1) / den
+        r2 = ((1.0 - a2) * q2 + (1.0 - b2) * s2 - 2.0 * c2) / den
+        r = r0 * r0 + r1 * r1 + r2 * r2
+        if r > 1.0:
+            r0, r1, r2 = -r0 / r, -r1 / r, -r2 / r
+    else:
+        r0, r1, r2 = s0, s1, s2
+    v0, v1, v2 = valid[e, 0] > 0.5, valid[e, 1] > 0.5, valid[e, 2] > 0.5
+    # each head on the MRP branch nearest the propagated estimate
+    a00, a01, a02 = _branch(heads[e, 0], heads[e, 1], heads[e, 2], r0, r1, r2)
+    a10, a11, a12 = _branch(heads[e, 3], heads[e, 4], heads[e, 5], r0, r1, r2)
+    a20, a21, a22 = _branch(heads[e, 6], heads[e, 7], heads[e, 8], r0, r1, r2)
+    count = (1 if v0 else 0) + (1 if v1 else 0) + (1 if v2 else 0)
+    out[e, 0] = _vote(a00, a10, a20, v0, v1, v2, count, r0)
+    out[e, 1] = _vote(a01, a11, a21, v0, v1, v2, count, r1)
+    out[e, 2] = _vote(a02, a12, a22, v0, v1, v2, count, r2)
+
+
+@numba.njit(inline="always")
+def _branch(h0, h1, h2, r0, r1, r2):  # pragma: no cover - compiled
+    """``nearest_branch`` of one head ``h`` to the estimate ``r``."""
+    m2 = h0 * h0 + h1 * h1 + h2 * h2
+    d = m2 if m2 > 0.0 else 1.0
+    w0, w1, w2 = -h0 / d, -h1 / d, -h2 / d
+    x0, x1, x2 = w0 - r0, w1 - r1, w2 - r2
+    y0, y1, y2 = h0 - r0, h1 - r1, h2 - r2
+    if (x0 * x0 + x1 * x1 + x2 * x2) < (y0 * y0 + y1 * y1 + y2 * y2) and m2 > 0.0:
+        return w0, w1, w2
+    return h0, h1, h2
+
+
+@numba.njit(inline="always")
+def _vote(a, b, c, va, vb, vc, count, fallback):  # pragma: no cover
+    """``vote`` of one component: the median of three valid heads, the mean of fewer, else the
+    propagated estimate."""
+    if count == 3:
+        return _max(_min(a, b), _min(_max(a, b), c))
+    if count > 0:
+        total = a * (1.0 if va else 0.0) + b * (1.0 if vb else 0.0)
+        total = total + c * (1.0 if vc else 0.0)
+        return total / count
+    return fallback
 
 
 def torque_demand(
@@ -257,3 +274,159 @@ def allocate(
     cancel = (np.asarray(bias_hat) + friction_hat_nm / u_max) / np.where(working, gain_hat, 1.0)
     command = np.einsum("nij,nj->ni", allocation_matrix, target) - np.where(working, cancel, 0.0)
     return np.clip(command, -1.0, 1.0)
+
+
+@numba.njit(inline="always")
+def _clip1(x):  # pragma: no cover - compiled
+    """``np.clip(x, -1, 1)`` (NaN stays NaN)."""
+    if x < -1.0:
+        return -1.0
+    if x > 1.0:
+        return 1.0
+    return x
+
+
+@numba.njit(inline="always")
+def _law_episode(
+    e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
+    beliefs, inertia, axes, scalars, single_row, out,
+):  # fmt: skip  # pragma: no cover - compiled
+    """One episode of ``fuse -> torque_demand -> friction_nm -> allocate``, the same operations
+    in the same order as the numpy functions above (the sums through ``scftc_cli.sim.sums``)."""
+    _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, sigma_out)
+    last_gyro[e, 0], last_gyro[e, 1], last_gyro[e, 2] = gyro[e, 0], gyro[e, 1], gyro[e, 2]
+    late = 1 if k >= onset[e] else 0
+    # beliefs[late, e]: (gain, coulomb, bias) x (m,), allocations[late, e]: (m, 3)
+    js, kp, kd, u_max, viscous, linear, dead_below = scalars
+    w0, w1, w2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
+    x0, x1, x2, x3 = js * obs[e, 15], js * obs[e, 16], js * obs[e, 17], js * obs[e, 18]
+    m0 = inertia[0] * w0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
+    m1 = inertia[1] * w1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
+    m2 = inertia[2] * w2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    s0, s1, s2 = sigma_out[e, 0], sigma_out[e, 1], sigma_out[e, 2]
+    d0 = -inertia[0] * (kp * s0 + kd * w0) + (w1 * m2 - w2 * m1)
+    d1 = -inertia[1] * (kp * s1 + kd * w1) + (w2 * m0 - w0 * m2)
+    d2 = -inertia[2] * (kp * s2 + kd * w2) + (w0 * m1 - w1 * m0)
+    f0 = _friction(obs[e, 15], beliefs[late, e, 1, 0], viscous, linear)
+    f1 = _friction(obs[e, 16], beliefs[late, e, 1, 1], viscous, linear)
+    f2 = _friction(obs[e, 17], beliefs[late, e, 1, 2], viscous, linear)
+    f3 = _friction(obs[e, 18], beliefs[late, e, 1, 3], viscous, linear)
+    # a dead wheel's friction, for the working ones to cancel
+    u0 = 0.0 if abs(beliefs[late, e, 0, 0]) > dead_below else f0
+    u1 = 0.0 if abs(beliefs[late, e, 0, 1]) > dead_below else f1
+    u2 = 0.0 if abs(beliefs[late, e, 0, 2]) > dead_below else f2
+    u3 = 0.0 if abs(beliefs[late, e, 0, 3]) > dead_below else f3
+    r0 = -(d0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)) / u_max
+    r1 = -(d1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)) / u_max
+    r2 = -(d2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)) / u_max
+    out[e, 0] = _command(allocations, beliefs, late, e, 0, f0, r0, r1, r2, u_max, dead_below)
+    out[e, 1] = _command(allocations, beliefs, late, e, 1, f1, r0, r1, r2, u_max, dead_below)
+    out[e, 2] = _command(allocations, beliefs, late, e, 2, f2, r0, r1, r2, u_max, dead_below)
+    out[e, 3] = _command(allocations, beliefs, late, e, 3, f3, r0, r1, r2, u_max, dead_below)
+
+
+@numba.njit(inline="always")
+def _friction(speed, coulomb, viscous, linear):  # pragma: no cover
+    """``friction_nm`` of one wheel."""
+    if abs(speed) < linear:
+        return -(((coulomb + viscous * linear) / linear) * speed)
+    return -(np.sign(speed) * coulomb + viscous * speed)
+
+
+@numba.njit(inline="always")
+def _command(allocations, beliefs, late, e, i, friction, r0, r1, r2, u_max, dead_below):  # pragma: no cover
+    """``allocate``'s clipped command of wheel ``i``."""
+    command = einsum3(
+        allocations[late, e, i, 0], allocations[late, e, i, 1], allocations[late, e, i, 2], r0, r1, r2
+    )
+    g = beliefs[late, e, 0, i]
+    if abs(g) > dead_below:
+        command = command - (beliefs[late, e, 2, i] + friction / u_max) / g
+    else:
+        command = command - 0.0  # numpy subtracts np.where(working, cancel, 0.0)
+    return _clip1(command)
+
+
+@numba.njit(cache=True)
+def _law_serial(
+    obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes, scalars, out
+):  # pragma: no cover - compiled
+    heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
+    single_row = obs.shape[0] == 1
+    for e in range(obs.shape[0]):
+        _law_episode(
+            e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
+            beliefs, inertia, axes, scalars, single_row, out,
+        )  # fmt: skip
+
+
+@numba.njit(parallel=True, cache=True)
+def _law_parallel(
+    obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes, scalars, out
+):  # pragma: no cover - compiled
+    heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
+    single_row = obs.shape[0] == 1
+    for e in numba.prange(obs.shape[0]):
+        _law_episode(
+            e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
+            beliefs, inertia, axes, scalars, single_row, out,
+        )  # fmt: skip
+
+
+PARALLEL_MIN_BATCH = 5_000
+"""From this many episodes on the law runs on numba's threads (as the plant): below it the
+fork-join costs more than the work. Both kernels run the same per-episode code: the same bits."""
+
+
+class AnalyticLaw:
+    """The fused attitude and the analytic law of a batch, as one compiled pass per step.
+
+    Exactly ``AttitudeFuser.update`` then ``torque_demand``, ``friction_nm`` and ``allocate`` (the
+    numpy functions above stay the readable definition; ``tests/versions/v2/controllers/test_law.py`` checks
+    the bits). What the law believes of each wheel switches once per episode, at step ``onset``
+    (from ``before`` to ``after``): ``pd`` believes the same throughout, the oracles switch at the
+    fault's onset.
+
+    Args:
+        n: episodes.
+        context: the episodes' context (wheel constants, nominal inertia, step).
+        before, after: ``(allocation (n, m, 3), gain (n, m), coulomb (n, m) N m, bias (n, m))``.
+        onset: ``(n,)`` the first step of ``after``.
+    """
+
+    def __init__(self, n: int, context: Context, before: tuple, after: tuple, onset: np.ndarray) -> None:
+        wheels = wheels_of(context)
+        self.fuser = AttitudeFuser(n)
+        self.k = 0
+        self.dt_s = float(context.dt_s)
+        self.onset = np.ascontiguousarray(onset, dtype=np.int64)
+        shape = (n, len(wheels.spin_axes))
+        self.allocations = np.stack(
+            [np.broadcast_to(before[0], shape + (3,)), np.broadcast_to(after[0], shape + (3,))]
+        )
+        self.beliefs = np.stack(
+            [
+                np.stack([np.broadcast_to(np.asarray(v, dtype=np.float64), shape) for v in b[1:]], axis=1)
+                for b in (before, after)
+            ]
+        )  # (2, n, 3, m): gain, coulomb, bias before and after the onset
+        self.inertia = np.ascontiguousarray(context.inertia_nominal_kgm2, dtype=np.float64)
+        self.axes = np.ascontiguousarray(wheels.spin_axes, dtype=np.float64)
+        self.scalars = (
+            float(wheels.spin_inertia_kgm2), KP_S2, KD_S, float(wheels.u_max_nm),
+            float(wheels.viscous_nms), float(wheels.omega_linear_rad_s), 1e-6,
+        )  # fmt: skip
+        self._kernel = _law_parallel if n >= PARALLEL_MIN_BATCH else _law_serial
+
+    def command(self, obs: np.ndarray) -> np.ndarray:
+        """Wheel commands ``(n, m)`` in [-1, 1] for observations ``(n, 19)``."""
+        obs = np.ascontiguousarray(obs, dtype=np.float64)
+        n, fuser = len(obs), self.fuser
+        sigma, out = np.empty((n, 3)), np.empty((n, 4))
+        self._kernel(
+            obs, fuser.sigma, fuser.last_gyro, fuser.started, self.dt_s, sigma, self.k, self.onset,
+            self.allocations, self.beliefs, self.inertia, self.axes, self.scalars, out,
+        )  # fmt: skip
+        fuser.sigma, fuser.started = sigma, True  # the kernel wrote this step's gyro into last_gyro
+        self.k += 1
+        return out

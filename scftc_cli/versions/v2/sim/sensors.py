@@ -24,6 +24,7 @@ is read through one of them (each advances its own copy of the streams).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -31,7 +32,7 @@ import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose
-from scftc_cli.sim.pcg64 import standard_normal, states_of
+from scftc_cli.sim.pcg64 import fill_uniform, seeded_states, standard_normal
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes, sensor_code
@@ -85,19 +86,28 @@ class HeadsGyroTachometers(Sensors):
         self.head = np.asarray(fault.head)
         self.head_bias = np.asarray(fault.head_bias_mrp)
         self.frozen = np.zeros((n, 3))
-        self.streams = [
-            np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist())))
-            for seed in np.asarray(episodes.noise_seed)
-        ]
+        self.noise_seed = np.ascontiguousarray(episodes.noise_seed, dtype=np.uint32)
+        self.rng = seeded_states(self.noise_seed)  # observe's streams (PCG64(SeedSequence(seed)))
         bound = self.knowledge.gyro_bias_bound_rad_s
         self.gyro_bias = np.empty((n, 3))
-        for e, stream in enumerate(self.streams):
-            self.gyro_bias[e] = stream.uniform(-bound, bound, 3)
+        fill_uniform(self.rng, -bound, bound, self.gyro_bias)  # each stream's first three draws
         self.block = np.empty((n, BLOCK_STEPS, NOISE_CHANNELS))
         self.block_start = -BLOCK_STEPS
-        self.rng = states_of(self.streams)  # observe's copy of the streams, after the gyro bias
         self.next_step = 0  # the step observe reads next
         self._kernel = _observe_parallel if n >= PARALLEL_MIN_BATCH else _observe_serial
+
+    @functools.cached_property
+    def streams(self) -> list[np.random.Generator]:
+        """``observe_reference``'s copy of the streams: numpy's generators, standing where
+        ``observe``'s started (after the gyro bias's three uniforms)."""
+        bound = self.knowledge.gyro_bias_bound_rad_s
+        streams = [
+            np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist())))
+            for seed in self.noise_seed
+        ]
+        for stream in streams:
+            stream.uniform(-bound, bound, 3)
+        return streams
 
     def _noise(self, k: int) -> np.ndarray:
         """``(n, 16)`` standard normals of step ``k`` (steps are observed in order)."""

@@ -8,12 +8,14 @@ import pytest
 
 from scftc_cli.sim.mrp import compose, shadow_switch
 from scftc_cli.versions.v2.controllers.law import (
+    AnalyticLaw,
     AttitudeFuser,
     allocate,
     allocation,
     friction_nm,
     fuse_reference,
     split_observation,
+    torque_demand,
 )
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
 
@@ -91,3 +93,47 @@ def test_the_allocation_makes_the_hub_torque_the_demand(dead: int | None):
     motor = np.where(gain == 0.0, 0.0, motor)  # a dead wheel applies nothing (no offset in `loss`)
     hub = -(motor + friction) @ WHEELS.spin_axes
     np.testing.assert_allclose(hub, demand, atol=1e-12)
+
+
+class _NumpyLaw:
+    """The calibration law written with the readable numpy functions (what ``pd``, ``teacher`` and
+    ``bias_oracle`` flew before ``AnalyticLaw`` compiled it)."""
+
+    def __init__(self, n: int, context, before, after, onset) -> None:
+        self.context, self.wheels = context, context.wheels
+        self.fuser, self.k = AttitudeFuser(n), 0
+        self.before, self.after, self.onset = before, after, np.asarray(onset)
+
+    def command(self, obs: np.ndarray) -> np.ndarray:
+        heads, valid, gyro, tach = split_observation(obs)
+        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
+        demand = torque_demand(sigma, gyro, tach, self.context)
+        late = (self.k >= self.onset)[:, None]
+        matrix, gain, coulomb, bias = (
+            np.where(late[:, :, None] if b.ndim == 3 else late, a, b)
+            for b, a in zip(self.before, self.after, strict=True)
+        )
+        self.k += 1
+        return allocate(demand, matrix, gain, friction_nm(tach, coulomb, self.wheels), bias, self.wheels)
+
+
+@pytest.mark.parametrize(
+    ("fault_class", "n_faults", "n_seeds"), [("gain_bias", 6, 2), ("loss", 1, 1), ("friction", 1, 2)]
+)
+def test_the_compiled_law_is_the_numpy_law_bit_for_bit(fault_class: str, n_faults: int, n_seeds: int):
+    """On benchmark observations, closing the loop, with a dead wheel (loss) and per-episode onsets:
+    one episode (numpy's own matmul order), several (OpenBLAS's)."""
+    episodes = TESTBED.draw("train", fault_class, n_faults=n_faults, n_seeds=n_seeds)
+    n, fault = episodes.n, episodes.fault
+    context = TESTBED.context(episodes, privileged=True)
+    healthy, coulomb0 = np.ones((n, 4)), np.full((n, 4), WHEELS.coulomb_nm)
+    before = (allocation(healthy, WHEELS), healthy, coulomb0, np.zeros((n, 4)))
+    after = (allocation(fault.gain, WHEELS), fault.gain, coulomb0 * fault.friction_multiplier, fault.bias)
+    compiled = AnalyticLaw(n, context, before, after, fault.onset_step)
+    reference = _NumpyLaw(n, context, before, after, fault.onset_step)
+    plant, sensors = TESTBED.plant(episodes), TESTBED.sensors(episodes)
+    for k in range(TESTBED.spec.steps):
+        obs = sensors.observe(k, plant)
+        command = compiled.command(obs)
+        np.testing.assert_array_equal(command, reference.command(obs), err_msg=f"step {k}")
+        plant.step(k, command)

@@ -1,0 +1,49 @@
+"""Small dot products inside numba kernels, summed in the order numpy and OpenBLAS sum them.
+
+A compiled kernel gives the same bits as the numpy code it replaces only if every sum runs in the
+same order with the same roundings. Element-wise arithmetic does by itself (IEEE 754, and numba
+contracts no multiply-add unless asked); the small products below do not, because the libraries
+reorder them. Under the pinned kernels (``scftc_cli.PINNED_NUMERICS``: OpenBLAS's Haswell kernels,
+numpy without AVX-512), measured on millions of random rows (``tests/sim/test_sums.py``):
+
+- ``x (n, 4) @ B (4, 3)`` with ``n >= 2`` is OpenBLAS's ``dgemm``: for each output, the first
+  product rounded, then one fused multiply-add (a single rounding) per further term, in order;
+- the same with ``n == 1`` is numpy's own loop: ``(x0 B0 + x1 B1) + (x2 B2 + x3 B3)``;
+- ``np.einsum("nij,nj->ni", M, v)`` over three terms is ``(p0 + p2) + p1`` (numpy's two-lane
+  loop: the third product joins the first lane, then the lanes are added).
+
+``fma`` is LLVM's ``llvm.fma.f64``: the hardware instruction where the CPU has one, a correctly
+rounded library call where not, so the same bits either way.
+"""
+
+from __future__ import annotations
+
+import numba
+from numba.core import types
+from numba.core.extending import intrinsic
+
+
+@intrinsic
+def fma(typingctx, a, b, c):  # pragma: no cover - compiled
+    """``a * b + c`` with one rounding (numba only)."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, sig, args):
+        return builder.fma(*args)
+
+    return signature, codegen
+
+
+@numba.njit(inline="always")
+def gemm4(x0, x1, x2, x3, b0, b1, b2, b3, single_row):  # pragma: no cover
+    """One output of ``x (n, 4) @ B (4, m)``: row ``x0..x3``, column ``b0..b3``; ``single_row``
+    is ``n == 1`` (numpy's pairwise loop instead of OpenBLAS's multiply-add chain)."""
+    if single_row:
+        return (x0 * b0 + x1 * b1) + (x2 * b2 + x3 * b3)
+    return fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
+
+
+@numba.njit(inline="always")
+def einsum3(m0, m1, m2, v0, v1, v2):  # pragma: no cover - compiled
+    """One output of ``np.einsum("nij,nj->ni", M, v)`` over three terms: ``(p0 + p2) + p1``."""
+    return (m0 * v0 + m2 * v2) + m1 * v1
