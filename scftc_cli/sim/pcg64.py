@@ -153,14 +153,20 @@ def _mix(x, y):  # pragma: no cover - compiled
     return result ^ (result >> _U16)
 
 
-def seeded_states(entropy: np.ndarray) -> np.ndarray:
-    """``(n, 4)`` states of ``PCG64(SeedSequence(entropy[e].tolist()))`` for every row of
-    ``entropy`` ``(n, 4)`` ``uint32`` (four words: exactly SeedSequence's pool, the only case
-    written here)."""
+def seeded_states(entropy: np.ndarray, spawn_key: tuple[int, ...] = ()) -> np.ndarray:
+    """``(n, 4)`` states of ``PCG64(SeedSequence(entropy[e].tolist(), spawn_key=spawn_key))`` for
+    every row of ``entropy`` ``(n, 4)`` ``uint32``: four words, exactly SeedSequence's pool, the
+    only case written here (with a spawn key its words follow the entropy's and are mixed in after
+    the pool's own; keys below 2^32, one word each)."""
     entropy = np.asarray(entropy)
     if entropy.ndim != 2 or entropy.shape[1] != POOL_WORDS or entropy.dtype != np.uint32:
         raise ValueError(f"entropy must be (n, {POOL_WORDS}) uint32, got {entropy.shape} {entropy.dtype}")
-    return _seeded_states(np.ascontiguousarray(entropy))
+    if not all(0 <= int(key) < 2**32 for key in spawn_key):
+        raise ValueError(f"spawn keys must be in [0, 2^32), got {spawn_key}")
+    words = np.empty((len(entropy), POOL_WORDS + len(spawn_key)), dtype=np.uint32)
+    words[:, :POOL_WORDS] = entropy
+    words[:, POOL_WORDS:] = np.asarray(spawn_key, dtype=np.uint32)
+    return _seeded_states(words)
 
 
 @numba.njit(cache=True)
@@ -178,6 +184,10 @@ def _seeded_states(entropy: np.ndarray) -> np.ndarray:  # pragma: no cover - com
                 if i_src != i_dst:
                     hashed, hash_const = _hashmix(pool[i_src], hash_const)
                     pool[i_dst] = _mix(pool[i_dst], hashed)
+        for i_src in range(POOL_WORDS, entropy.shape[1]):  # the words past the pool (a spawn key)
+            for i_dst in range(POOL_WORDS):
+                hashed, hash_const = _hashmix(np.uint64(entropy[e, i_src]), hash_const)
+                pool[i_dst] = _mix(pool[i_dst], hashed)
         hash_const = _INIT_B
         for i in range(2 * POOL_WORDS):  # generate_state(4, uint64): eight uint32, little-endian pairs
             value = (pool[i % POOL_WORDS] ^ hash_const) & _M32

@@ -59,8 +59,21 @@ def test_seeding_is_seedsequence_and_pcg64_to_the_bit():
     np.testing.assert_array_equal(states, pcg64.states_of(generators))
 
 
+@pytest.mark.parametrize("spawn_key", [(0,), (1,), (2,), (7, 2**32 - 1)])
+def test_seeding_with_a_spawn_key_is_numpys(spawn_key: tuple[int, ...]):
+    entropy = np.random.default_rng(6).integers(0, 2**32, size=(300, 4), dtype=np.uint32)
+    entropy[:2] = 0
+    generators = [
+        np.random.Generator(np.random.PCG64(np.random.SeedSequence(row.tolist(), spawn_key=spawn_key)))
+        for row in entropy
+    ]
+    np.testing.assert_array_equal(pcg64.seeded_states(entropy, spawn_key), pcg64.states_of(generators))
+
+
 def test_seeding_takes_only_four_uint32_words():
     with pytest.raises(ValueError, match=r"\(n, 4\) uint32"):
         pcg64.seeded_states(np.zeros((3, 5), dtype=np.uint32))
     with pytest.raises(ValueError, match=r"\(n, 4\) uint32"):
         pcg64.seeded_states(np.zeros((3, 4), dtype=np.int64))
+    with pytest.raises(ValueError, match="spawn keys"):
+        pcg64.seeded_states(np.zeros((3, 4), dtype=np.uint32), (2**32,))

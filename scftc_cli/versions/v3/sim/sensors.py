@@ -24,17 +24,20 @@ The magnetometer does not see the rods' own field (a flight magnetometer would s
 sample between torquing pulses).
 
 ``observe_reference`` is the readable numpy definition; ``observe`` runs v2's fused kernel and a
-small numba pass for the magnetometer, the same operations in the same order: equal to the bit.
+small numba pass for the magnetometer that draws its noise and spikes itself (``sim/pcg64.py``),
+the same operations in the same order: equal to the bit.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from scftc_cli.sim.pcg64 import next_double, seeded_states, standard_normal
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.versions.v2.sim.faults import SensorFault, sensor_code
 from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
@@ -116,6 +119,10 @@ class SensorEpisodes:
         )  # fmt: skip
 
 
+NORMALS_KEY, SPIKES_KEY = 1, 2
+"""Spawn keys of the magnetometer's two streams (v2's stream has none)."""
+
+
 def _stream(seed: np.ndarray, key: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist(), spawn_key=(key,))))
 
@@ -141,14 +148,26 @@ class V3Sensors(Sensors):
         self.bias_t = np.ascontiguousarray(mag.bias_t, dtype=np.float64)
         self.spike_probability = np.ascontiguousarray(mag.spike_probability, dtype=np.float64)
         self.spike_amount = np.ascontiguousarray(mag.spike_amount, dtype=np.float64)
-        seeds = np.asarray(episodes.noise_seed)
-        n = len(seeds)
-        self.streams = [_stream(seed, 1) for seed in seeds]
+        self.noise_seed = np.ascontiguousarray(episodes.noise_seed, dtype=np.uint32)
+        n = len(self.noise_seed)
+        self.rng = seeded_states(self.noise_seed, (NORMALS_KEY,))  # observe's copies of the streams
+        self.spike_rng = seeded_states(self.noise_seed, (SPIKES_KEY,))  # read only where spiking
+        self.next_step = 0  # the step observe reads next
         self.spike_rows = np.flatnonzero(self.spiking)
-        self.spike_streams = [_stream(seeds[e], 2) for e in self.spike_rows]
         self.block = np.empty((n, BLOCK_STEPS, MAG_CHANNELS))
         self.spike_block = np.ones((n, BLOCK_STEPS, MAG_CHANNELS))  # 1.0 never spikes (p < 1)
         self.block_start = -BLOCK_STEPS
+
+    @functools.cached_property
+    def streams(self) -> list[np.random.Generator]:
+        """``magnetometer_reference``'s numpy generators of the normals (``observe`` draws the same
+        numbers from its own copies, ``rng``)."""
+        return [_stream(seed, NORMALS_KEY) for seed in self.noise_seed]
+
+    @functools.cached_property
+    def spike_streams(self) -> list[np.random.Generator]:
+        """``magnetometer_reference``'s generators of the spike uniforms, spiking episodes only."""
+        return [_stream(self.noise_seed[e], SPIKES_KEY) for e in self.spike_rows]
 
     def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(n, 3)`` standard normals and ``(n, 3)`` spike uniforms of step ``k`` (in order)."""
@@ -186,29 +205,40 @@ class V3Sensors(Sensors):
         return np.concatenate([head, self.magnetometer_reference(k, plant.states()["field_b_t"])], axis=1)
 
     def observe(self, k: int, plant: Plant) -> np.ndarray:
-        """``(n, 22)`` observation of the plant's true state at the start of step ``k``."""
+        """``(n, 22)`` observation of the plant's true state at the start of step ``k`` (steps are
+        read in order, each once)."""
+        if k != self.next_step:
+            raise ValueError(f"sensors are read step by step; step {k} follows {self.next_step - 1}")
         head = self._blank(k, self.v2.observe(k, plant))
-        z, uniform = self._draws(k)
         out = np.empty((head.shape[0], head.shape[1] + MAG_CHANNELS))
         out[:, : head.shape[1]] = head
         field = np.ascontiguousarray(plant.states()["field_b_t"], dtype=np.float64)
         _magnetometer_kernel(
-            k, field, z, uniform, self.onset, self.biased, self.spiking, self.bias_t, self.spike_probability,
-            self.spike_amount, self.noise_t, out, head.shape[1],
+            k, field, self.rng, self.spike_rng, self.onset, self.biased, self.spiking, self.bias_t,
+            self.spike_probability, self.spike_amount, self.noise_t, out, head.shape[1],
         )  # fmt: skip
+        self.next_step = k + 1
         return out
 
 
 @numba.njit(cache=True)
 def _magnetometer_kernel(
-    k, field, z, uniform, onset, biased, spiking, bias, probability, amount, scale, out, col
-):
-    """``magnetometer_reference`` of every episode of step ``k`` into ``out[:, col:col + 3]``."""
+    k, field, rng, spike_rng, onset, biased, spiking, bias, probability, amount, scale, out, col
+):  # pragma: no cover - compiled
+    """``magnetometer_reference`` of every episode of step ``k`` into ``out[:, col:col + 3]``,
+    drawing the step's three normals of every episode and three uniforms of every spiking one
+    (``sim/pcg64.py``: the numbers numpy's generators give, in the same order)."""
     for e in range(field.shape[0]):
         faulted = k >= onset[e]
+        z0, z1, z2 = standard_normal(rng, e), standard_normal(rng, e), standard_normal(rng, e)
+        u0 = u1 = u2 = 1.0  # 1.0 never spikes (p < 1)
+        if spiking[e]:
+            u0, u1, u2 = next_double(spike_rng, e), next_double(spike_rng, e), next_double(spike_rng, e)
         for i in range(3):
+            z = z0 if i == 0 else (z1 if i == 1 else z2)
+            u = u0 if i == 0 else (u1 if i == 1 else u2)
             b = bias[e, i] if (faulted and biased[e]) else 0.0
-            v = (field[e, i] + scale * z[e, i]) + b
-            if faulted and spiking[e] and uniform[e, i] <= probability[e, i]:
+            v = (field[e, i] + scale * z) + b
+            if faulted and spiking[e] and u <= probability[e, i]:
                 v = v * amount[e, i]
             out[e, col + i] = v
