@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import UnknownNameError, UsageError
@@ -24,7 +24,7 @@ from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
 if TYPE_CHECKING:
-    from scftc_cli.distributed.runner import Runner
+    from scftc_cli.distributed.runner import ChunkTask, Runner
 
 
 @dataclass(frozen=True)
@@ -173,16 +173,12 @@ def _evaluate_on_cluster(
 ) -> list[CellRun]:
     """Every cell split into chunks, all chunks mapped over the cluster at once, then each cell's
     chunks concatenated in order and scored here."""
-    from scftc_cli.distributed.runner import CHUNK_EPISODES, ChunkTask, chunks, run_chunk
+    from scftc_cli.distributed.runner import run_chunk
 
     faults = spec.n_faults if n_faults is None else n_faults
     seeds = spec.n_seeds if n_seeds is None else n_seeds
     n = faults * seeds
-    tasks = [
-        ChunkTask(ref, spec.version, c.split, c.fault_class, c.sensor, faults, seeds, salt, backend, a, b)
-        for c in cells
-        for a, b in chunks(n, CHUNK_EPISODES)
-    ]
+    tasks = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
     progress.describe(f"{label} on {len(cells)} cell(s), {len(tasks)} chunk(s) on the cluster")
     outcomes = runner.map(run_chunk, tasks, progress, weight=lambda t: spec.steps * t.steps / n)
     per_cell = len(tasks) // len(cells)
@@ -194,6 +190,39 @@ def _evaluate_on_cluster(
         )
         runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt)))
     return runs
+
+
+def chunk_tasks(
+    ref: ControllerRef,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    n_faults: int | None = None,
+    n_seeds: int | None = None,
+    backend: str = "numpy",
+    salt: bytes = b"",
+) -> list[ChunkTask]:
+    """The cluster's tasks for ``evaluate_cells(..., runner=...)`` of ``cells``: each cell's
+    episodes in chunks of at most ``CHUNK_EPISODES``, cell after cell."""
+    from scftc_cli.distributed.runner import CHUNK_EPISODES, ChunkTask, chunks
+
+    faults = spec.n_faults if n_faults is None else n_faults
+    seeds = spec.n_seeds if n_seeds is None else n_seeds
+    return [
+        ChunkTask(ref, spec.version, c.split, c.fault_class, c.sensor, faults, seeds, salt, backend, a, b)
+        for c in cells
+        for a, b in chunks(faults * seeds, CHUNK_EPISODES)
+    ]
+
+
+def prefetch_cells(
+    runner: Runner, ref: ControllerRef, spec: BenchmarkSpec, cells: list[Cell], **draw: Any
+) -> None:
+    """Queue on ``runner`` the chunks a later ``evaluate_cells(..., runner=runner, ref=ref)`` of
+    ``cells`` with the same ``draw`` options (``n_faults``, ``n_seeds``, ``backend``, ``salt``)
+    will map (``Runner.prefetch``)."""
+    from scftc_cli.distributed.runner import run_chunk
+
+    runner.prefetch(run_chunk, chunk_tasks(ref, spec, cells, **draw))
 
 
 def planned_steps(spec: BenchmarkSpec, cells: list[Cell]) -> int:

@@ -22,7 +22,7 @@ import numpy as np
 from scftc_cli.board.models import BACKEND, Entry
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.evaluate import Cell, ControllerFactory, board_cells, evaluate_cells
+from scftc_cli.evaluate import Cell, ControllerFactory, board_cells, evaluate_cells, prefetch_cells
 from scftc_cli.protocol import NO_PROGRESS, Context, Controller, Progress
 from scftc_cli.records import CellResult
 from scftc_cli.registry import ControllerSpec
@@ -130,6 +130,19 @@ def training_record(entry: ControllerSpec) -> dict[str, int] | None:
     (weights,) = entry.artifact_paths()
     provenance = yaml.safe_load(weights.with_suffix(".yaml").read_text())["provenance"]
     return {"seed": int(provenance["seed"]), "seeds_tried": int(provenance.get("seeds_tried", 1))}
+
+
+def prefetch(ref: ControllerRef, scoring: Scoring, draws: Draws) -> None:
+    """Queue on ``scoring.runner`` (if any) the chunks that scoring ``ref`` on ``draws`` will map
+    there (``score_builtin``, or ``score_submission`` on a cluster), so that a job scoring many
+    entries keeps the cluster busy from one entry to the next."""
+    if scoring.runner is None:
+        return
+    for salt in draws.values():
+        prefetch_cells(
+            scoring.runner, ref, scoring.spec, board_cells(scoring.spec), n_faults=scoring.faults,
+            n_seeds=scoring.seeds, backend=scoring.backend, salt=salt,
+        )  # fmt: skip
 
 
 def score_builtin(entry: ControllerSpec, scoring: Scoring, draws: Draws) -> Flown:

@@ -23,6 +23,7 @@ from scftc_cli.board.flights import (
     Scoring,
     artifact_hashes,
     find_submission_file,
+    prefetch,
     score_builtin,
     score_submission,
     steps_per_entry,
@@ -30,6 +31,7 @@ from scftc_cli.board.flights import (
 from scftc_cli.board.models import Entry, Leaderboard
 from scftc_cli.board.rounds import sealed_salt
 from scftc_cli.board.store import default_submissions_dir, read_board
+from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import ScftcError
 from scftc_cli.records import CellResult
 from scftc_cli.registry import ControllerSpec, registry
@@ -181,6 +183,10 @@ def verify(
             report.problems[name] = ["registered built-in controller missing from the board"]
     chain = chain_problems(board)
     full = replace(scoring, n_faults=None, n_seeds=None)
+    if full.runner is not None:  # queue every entry's flights before the first is awaited
+        for entry in board.entries:
+            if not chain.get(entry.name) and entry.status != "failed":
+                _prefetch(entry, full, battery, submissions_dir, root)
     for entry in board.entries:
         start = dt.datetime.now()
         problems = chain.get(entry.name, [])
@@ -194,6 +200,36 @@ def verify(
     return report
 
 
+def _prefetch(
+    entry: Entry, scoring: Scoring, battery: dict[str, ControllerSpec], submissions_dir: Path, root: Path
+) -> None:
+    """``prefetch`` what ``_refly`` will fly of ``entry`` (nothing where it will not get that
+    far: ``_refly`` then says why)."""
+    ref: ControllerRef
+    if entry.kind == "builtin":
+        if entry.name not in battery:
+            return
+        ref = BuiltinRef(entry.name, scoring.spec.version)
+    else:
+        path = find_submission_file(entry, submissions_dir, root)
+        if path is None:
+            return
+        try:
+            sub = load_submission(path)
+        except ScftcError:
+            return
+        ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
+    prefetch(ref, scoring, entry_draws(entry))
+
+
+def entry_draws(entry: Entry) -> Draws:
+    """The draws an entry is re-flown on: the public one, and its sealed one once sealed."""
+    draws: Draws = {"public": PUBLIC}
+    if entry.sealed_salt is not None:
+        draws["sealed"] = salt_from_hex(entry.sealed_salt)
+    return draws
+
+
 def _refly(
     entry: Entry,
     scoring: Scoring,
@@ -202,9 +238,7 @@ def _refly(
     root: Path,
     report: VerifyReport,
 ) -> list[str]:
-    draws: Draws = {"public": PUBLIC}
-    if entry.sealed_salt is not None:
-        draws["sealed"] = salt_from_hex(entry.sealed_salt)
+    draws = entry_draws(entry)
     try:
         if entry.kind == "builtin":
             if entry.name not in battery:

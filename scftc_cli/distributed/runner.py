@@ -80,10 +80,31 @@ def chunks(n: int, size: int) -> list[tuple[int, int]]:
 
 
 class Runner:
-    """Maps functions over a Dask cluster (``client``), results in submission order."""
+    """Maps functions over a Dask cluster (``client``), results in submission order.
+
+    ``prefetch`` queues work a caller will ``map`` later: a job that maps one controller at a time
+    (``leaderboard verify``, ``reproduce``) would otherwise wait for each controller's slowest
+    chunk before giving the workers the next one, and its in-process work (a submission's
+    sandboxed flights, a study's trajectories) would leave them idle. Queued all at once, the
+    workers stay busy; ``map`` then takes the prefetched futures instead of submitting again.
+    """
 
     def __init__(self, client: Any, address: str) -> None:
         self.client, self.address = client, address
+        self._ahead: dict[tuple[Callable[[Any], Any], Any], Any] = {}
+
+    def prefetch(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> None:
+        """Start ``fn(item)`` for every item now, for a later ``map`` of the same items (items
+        must be hashable; one queued twice runs once)."""
+        fresh = [item for item in dict.fromkeys(items) if (fn, item) not in self._ahead]
+        for item, future in zip(fresh, self.client.map(fn, fresh, pure=False), strict=True):
+            self._ahead[(fn, item)] = future
+
+    def discard(self) -> None:
+        """Drop the prefetched futures no ``map`` took (the cluster cancels their work)."""
+        for future in self._ahead.values():
+            future.cancel()
+        self._ahead.clear()
 
     def map(
         self,
@@ -96,7 +117,11 @@ class Runner:
         ``weight`` as its result comes back."""
         from distributed import as_completed
 
-        futures = self.client.map(fn, list(items), pure=False)
+        items = list(items)
+        ahead = [self._ahead.pop((fn, item), None) if self._ahead else None for item in items]
+        missing = [i for i, future in enumerate(ahead) if future is None]
+        submitted = iter(self.client.map(fn, [items[i] for i in missing], pure=False) if missing else [])
+        futures = [future if future is not None else next(submitted) for future in ahead]
         index = {f.key: i for i, f in enumerate(futures)}
         for future in as_completed(futures):
             progress.advance(weight(items[index[future.key]]))
@@ -147,7 +172,11 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
             ) as local,
             Client(local) as client,
         ):
-            yield Runner(client, local.scheduler_address)
+            runner = Runner(client, local.scheduler_address)
+            try:
+                yield runner
+            finally:
+                runner.discard()
         return
     try:
         client = Client(address, timeout="10s")
@@ -156,7 +185,9 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
             f"cannot reach the Dask scheduler at {address} ({type(err).__name__}); check the address "
             f"(--scheduler or {SCHEDULER_ENV}) and that the scheduler is running"
         ) from None
+    runner = Runner(client, str(address))
     try:
-        yield Runner(client, str(address))
+        yield runner
     finally:
+        runner.discard()
         client.close()

@@ -20,7 +20,7 @@ from pydantic import BaseModel
 
 from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.errors import ScftcError
-from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, select_cells
+from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, prefetch_cells, select_cells
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
@@ -434,6 +434,12 @@ def run_study(
     actuator_cells = select_cells(spec, "test", None, None)
     sensor_cells = select_cells(spec, "test", None, "all")
     gate = spec.gates.settled_deg
+    if runner is not None:  # every controller's flights queued at once: the workers never wait
+        first = actuator_cells + sensor_cells if sensors_in_battery(spec) else actuator_cells
+        for e in battery_order:
+            prefetch_cells(
+                runner, BuiltinRef(e.name, spec.version), spec, first, n_faults=n_faults, n_seeds=n_seeds
+            )
     if sensors_in_battery(spec):
         cells = actuator_cells + sensor_cells
         runs = {e.name: _fly(e, spec, cells, n_faults, n_seeds, progress, runner) for e in battery_order}

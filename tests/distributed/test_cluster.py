@@ -75,6 +75,24 @@ def test_chunked_cluster_runs_are_bit_identical_to_the_serial_run(name, dask_run
         _same(runs, serial)
 
 
+def test_prefetched_work_is_taken_by_map_not_submitted_again(dask_runner: Runner, monkeypatch):
+    submitted: list[int] = []
+    real = dask_runner.client.map
+
+    def spy(fn, items, **kwargs):
+        submitted.extend(items)
+        return real(fn, items, **kwargs)
+
+    monkeypatch.setattr(dask_runner.client, "map", spy)
+    dask_runner.prefetch(abs, [-3, -1, -2, -1])  # a repeat runs once
+    assert dask_runner.map(abs, [-1, -2, -3, -4]) == [1, 2, 3, 4]  # in the order asked
+    assert submitted == [-3, -1, -2, -4]  # only -4 was not queued ahead
+    dask_runner.prefetch(abs, [-5])
+    dask_runner.discard()  # what no map took is dropped
+    assert dask_runner.map(abs, [-5]) == [5]
+    assert submitted[-1] == -5
+
+
 def test_a_slice_of_a_cell_is_that_slice_of_the_whole_cell():
     ref = BuiltinRef("bias_oracle", V1.version)
     whole = run_chunk(ChunkTask(ref, V1.version, "test", "gain_bias", None, 5, 4, b"", "numpy", 0, 20))
