@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim.mrp import compose, shadow_switch
+from scftc_cli.versions.v2.controllers import law
 from scftc_cli.versions.v2.controllers.law import (
     AnalyticLaw,
     AttitudeFuser,
@@ -118,11 +119,16 @@ class _NumpyLaw:
 
 
 @pytest.mark.parametrize(
-    ("fault_class", "n_faults", "n_seeds"), [("gain_bias", 6, 2), ("loss", 1, 1), ("friction", 1, 2)]
+    ("fault_class", "n_faults", "n_seeds", "threads"),
+    [("gain_bias", 6, 2, False), ("loss", 1, 1, False), ("friction", 1, 2, False), ("gain_bias", 4, 2, True)],
 )
-def test_the_compiled_law_is_the_numpy_law_bit_for_bit(fault_class: str, n_faults: int, n_seeds: int):
+def test_the_compiled_law_is_the_numpy_law_bit_for_bit(
+    fault_class: str, n_faults: int, n_seeds: int, threads: bool, monkeypatch
+):
     """On benchmark observations, closing the loop, with a dead wheel (loss) and per-episode onsets:
-    one episode (numpy's own matmul order), several (OpenBLAS's)."""
+    one episode (numpy's own matmul order), several (OpenBLAS's); the threaded kernel too."""
+    if threads:
+        monkeypatch.setattr(law, "PARALLEL_MIN_BATCH", 1)
     episodes = TESTBED.draw("train", fault_class, n_faults=n_faults, n_seeds=n_seeds)
     n, fault = episodes.n, episodes.fault
     context = TESTBED.context(episodes, privileged=True)
