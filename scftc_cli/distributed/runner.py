@@ -118,6 +118,7 @@ class Runner:
         from distributed import as_completed
 
         items = list(items)
+        # only look items up when something was queued: a tuner maps unhashable parameter vectors
         ahead = [self._ahead.pop((fn, item), None) if self._ahead else None for item in items]
         missing = [i for i, future in enumerate(ahead) if future is None]
         submitted = iter(self.client.map(fn, [items[i] for i in missing], pure=False) if missing else [])

@@ -153,6 +153,13 @@ def _mix(x, y):  # pragma: no cover - compiled
     return result ^ (result >> _U16)
 
 
+def numpy_stream(entropy: np.ndarray, spawn_key: tuple[int, ...] = ()) -> np.random.Generator:
+    """The numpy generator whose state ``seeded_states`` computes for one row of ``entropy``:
+    ``Generator(PCG64(SeedSequence(entropy.tolist(), spawn_key=spawn_key)))`` (what the readable
+    references draw from)."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy.tolist(), spawn_key=spawn_key)))
+
+
 def seeded_states(entropy: np.ndarray, spawn_key: tuple[int, ...] = ()) -> np.ndarray:
     """``(n, 4)`` states of ``PCG64(SeedSequence(entropy[e].tolist(), spawn_key=spawn_key))`` for
     every row of ``entropy`` ``(n, 4)`` ``uint32``: four words, exactly SeedSequence's pool, the

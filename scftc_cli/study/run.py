@@ -434,26 +434,27 @@ def run_study(
     actuator_cells = select_cells(spec, "test", None, None)
     sensor_cells = select_cells(spec, "test", None, "all")
     gate = spec.gates.settled_deg
+    in_battery = sensors_in_battery(spec)  # does every controller fly the sensor cells?
+    battery_cells = actuator_cells + sensor_cells if in_battery else actuator_cells
     if runner is not None:  # every controller's flights queued at once: the workers never wait
-        first = actuator_cells + sensor_cells if sensors_in_battery(spec) else actuator_cells
         for e in battery_order:
             prefetch_cells(
-                runner, BuiltinRef(e.name, spec.version), spec, first, n_faults=n_faults, n_seeds=n_seeds
+                runner,
+                BuiltinRef(e.name, spec.version),
+                spec,
+                battery_cells,
+                n_faults=n_faults,
+                n_seeds=n_seeds,
             )
-    if sensors_in_battery(spec):
-        cells = actuator_cells + sensor_cells
-        runs = {e.name: _fly(e, spec, cells, n_faults, n_seeds, progress, runner) for e in battery_order}
-        battery = [_result(e, spec, runs[e.name]) for e in battery_order]
+    runs = {e.name: _fly(e, spec, battery_cells, n_faults, n_seeds, progress, runner) for e in battery_order}
+    battery = [_result(e, spec, runs[e.name]) for e in battery_order]
+    if in_battery:
         sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]
         deployed, reason = (
             None,
             "Every controller flies the sensor classes on this version (part of its battery)",
         )
     else:
-        runs = {
-            e.name: _fly(e, spec, actuator_cells, n_faults, n_seeds, progress, runner) for e in battery_order
-        }
-        battery = [_result(e, spec, runs[e.name]) for e in battery_order]
         deployed, reason = choose_deployed(battery, plan.deployed_preference)
         sensor_names = [n for n in (deployed, plan.sensor_oracle) if n is not None and n in entries]
         sensor_results = []

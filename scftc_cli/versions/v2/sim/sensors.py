@@ -32,7 +32,7 @@ import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose
-from scftc_cli.sim.pcg64 import fill_uniform, seeded_states, standard_normal
+from scftc_cli.sim.pcg64 import fill_uniform, numpy_stream, seeded_states, standard_normal
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes, sensor_code
@@ -101,10 +101,7 @@ class HeadsGyroTachometers(Sensors):
         """``observe_reference``'s copy of the streams: numpy's generators, standing where
         ``observe``'s started (after the gyro bias's three uniforms)."""
         bound = self.knowledge.gyro_bias_bound_rad_s
-        streams = [
-            np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist())))
-            for seed in self.noise_seed
-        ]
+        streams = [numpy_stream(seed) for seed in self.noise_seed]
         for stream in streams:
             stream.uniform(-bound, bound, 3)
         return streams

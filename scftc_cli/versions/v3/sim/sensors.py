@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from scftc_cli.sim.pcg64 import next_double, seeded_states, standard_normal
+from scftc_cli.sim.pcg64 import next_double, numpy_stream, seeded_states, standard_normal
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.versions.v2.sim.faults import SensorFault, sensor_code
 from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
@@ -123,10 +123,6 @@ NORMALS_KEY, SPIKES_KEY = 1, 2
 """Spawn keys of the magnetometer's two streams (v2's stream has none)."""
 
 
-def _stream(seed: np.ndarray, key: int) -> np.random.Generator:
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed.tolist(), spawn_key=(key,))))
-
-
 class V3Sensors(Sensors):
     """The sensors of a batch of v3 episodes. Observation ``(n, 22)``: v2's 19 values (three head
     MRPs, three validity flags, gyro rad/s, tachometers rad/s), then the magnetometer (3) tesla."""
@@ -162,12 +158,12 @@ class V3Sensors(Sensors):
     def streams(self) -> list[np.random.Generator]:
         """``magnetometer_reference``'s numpy generators of the normals (``observe`` draws the same
         numbers from its own copies, ``rng``)."""
-        return [_stream(seed, NORMALS_KEY) for seed in self.noise_seed]
+        return [numpy_stream(seed, (NORMALS_KEY,)) for seed in self.noise_seed]
 
     @functools.cached_property
     def spike_streams(self) -> list[np.random.Generator]:
         """``magnetometer_reference``'s generators of the spike uniforms, spiking episodes only."""
-        return [_stream(self.noise_seed[e], SPIKES_KEY) for e in self.spike_rows]
+        return [numpy_stream(self.noise_seed[e], (SPIKES_KEY,)) for e in self.spike_rows]
 
     def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(n, 3)`` standard normals and ``(n, 3)`` spike uniforms of step ``k`` (in order)."""
@@ -230,13 +226,9 @@ def _magnetometer_kernel(
     (``sim/pcg64.py``: the numbers numpy's generators give, in the same order)."""
     for e in range(field.shape[0]):
         faulted = k >= onset[e]
-        z0, z1, z2 = standard_normal(rng, e), standard_normal(rng, e), standard_normal(rng, e)
-        u0 = u1 = u2 = 1.0  # 1.0 never spikes (p < 1)
-        if spiking[e]:
-            u0, u1, u2 = next_double(spike_rng, e), next_double(spike_rng, e), next_double(spike_rng, e)
-        for i in range(3):
-            z = z0 if i == 0 else (z1 if i == 1 else z2)
-            u = u0 if i == 0 else (u1 if i == 1 else u2)
+        for i in range(3):  # each stream read in axis order (two streams: interleaving changes nothing)
+            z = standard_normal(rng, e)
+            u = next_double(spike_rng, e) if spiking[e] else 1.0  # 1.0 never spikes (p < 1)
             b = bias[e, i] if (faulted and biased[e]) else 0.0
             v = (field[e, i] + scale * z) + b
             if faulted and spiking[e] and u <= probability[e, i]:
