@@ -15,6 +15,13 @@ and ``full`` (the committed params files). After the search, the winner is score
 train cells for the provenance (``train_settled_rate``: the mean over the tuned cells; every train
 actuator cell, and on a version that asks for it every sensor cell, is scored for the record).
 Same seed, same result: the episodes are pinned and DE is seeded.
+
+A box whose controller reads every parameter per episode (``TuneSpec.per_episode_params``) flies a
+whole DE generation as one batch: each candidate's copy of the tuning episodes, one row block per
+candidate (``population_losses``). The episodes never mix, so each candidate's loss is the bits its
+own batch would give; DE then runs with scipy's deferred update (the whole generation is proposed
+before any of it is judged), so the result is that of the deferred serial search, and of the same
+search on a Dask cluster.
 """
 
 from __future__ import annotations
@@ -73,10 +80,23 @@ class TuneSpec:
     space: tuple[Dim, ...]
     classes: tuple[str, ...]  # the train cells flown by the objective
     benchmark: str  # the version whose train split it is tuned on
+    per_episode_params: bool = False
+    """The controller also takes every parameter as an ``(n, 1)`` array, row ``e`` episode ``e``'s
+    value: its generations are flown as one batch (``population_losses``)."""
 
     def params(self, x: np.ndarray) -> Any:
         """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
         return self.params_cls(**{d.name: d.decode(v) for d, v in zip(self.space, x, strict=True)})
+
+    def population(self, xs: np.ndarray, repeats: int) -> Any:
+        """The params of DE's candidates ``xs`` ``(len(space), S)`` flown as one batch: every searched
+        field an ``(S * repeats, 1)`` array holding candidate ``j``'s value on rows ``j * repeats`` to
+        ``(j + 1) * repeats - 1``; the others at their defaults."""
+        fields = {}
+        for d, row in zip(self.space, xs, strict=True):
+            values = np.array([d.decode(v) for v in row], dtype=np.int64 if d.integer else np.float64)
+            fields[d.name] = np.repeat(values, repeats)[:, None]
+        return self.params_cls(**fields)
 
     def start(self) -> np.ndarray:
         """The documented starting values, clipped into the box (seeded into DE's population)."""
@@ -138,12 +158,35 @@ def objective(controller: Controller, episodes: Episodes) -> tuple[float, float]
     """``(loss, settled_rate)``: ``loss = -settled_rate + tie`` (see the module docstring)."""
     gates = get_spec(episodes.benchmark).gates
     result = rollout(controller, episodes)
-    settled = gate_outcomes(result, gates)["settled"]
+    return _loss(gate_outcomes(result, gates)["settled"], result.dwell_max_error_deg, gates.settled_deg)
+
+
+def _loss(settled: np.ndarray, error_deg: np.ndarray, gate_deg: float) -> tuple[float, float]:
+    """``(loss, settled_rate)`` of one candidate's episodes: ``settled`` ``(n,)`` bool and their
+    dwell errors ``(n,)`` deg."""
     n = settled.size
-    depth = np.clip(np.log10(np.maximum(result.dwell_max_error_deg, 1e-12) / gates.settled_deg), -4, 4)
+    depth = np.clip(np.log10(np.maximum(error_deg, 1e-12) / gate_deg), -4, 4)
     tie = 0.5 / n * float(np.mean(depth + 4.0) / 8.0)
     rate = float(settled.mean())
     return -rate + tie, rate
+
+
+def population_losses(spec: TuneSpec, xs: np.ndarray, episodes: Episodes) -> tuple[np.ndarray, np.ndarray]:
+    """``(losses (S,), settled rates (S,))`` of DE's candidates ``xs`` ``(len(space), S)``, flown as
+    one batch of ``S`` copies of ``episodes`` (``spec.per_episode_params``): equal, candidate by
+    candidate, to ``objective`` on ``episodes`` alone."""
+    if not spec.per_episode_params:
+        raise ValueError(f"{spec.controller} takes one parameter set per batch; evaluate its candidates one by one")
+    size, n = xs.shape[1], episodes.n
+    controller = spec.factory(spec.population(xs, n))
+    gates = get_spec(episodes.benchmark).gates
+    result = rollout(controller, type(episodes).concat([episodes] * size))
+    settled = gate_outcomes(result, gates)["settled"]
+    scores = [
+        _loss(settled[j * n : (j + 1) * n], result.dwell_max_error_deg[j * n : (j + 1) * n], gates.settled_deg)
+        for j in range(size)
+    ]
+    return np.array([s[0] for s in scores]), np.array([s[1] for s in scores])
 
 
 def train_scores(spec: TuneSpec, params: Any, n_faults: int, n_seeds: int) -> dict[str, float]:
@@ -206,17 +249,26 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
             f"best loss {intermediate_result.fun:.4f}",
         )
 
+    def generation_losses(xs: np.ndarray) -> np.ndarray:
+        losses, rates = population_losses(spec, xs if xs.ndim == 2 else xs[:, None], episodes)
+        calls["n"] += losses.size
+        calls["best"] = max(calls["best"], float(rates.max()))
+        request.on_progress(
+            min(calls["n"] / expected, 0.99),
+            f"eval {calls['n']}/{expected} ({losses.size} per batch), best train {calls['best']:.3f}",
+        )
+        return losses
+
+    func: Callable[[np.ndarray], Any] = loss
     options: dict[str, Any] = {}
     if request.runner is not None:
-        options = {
-            "workers": request.runner,
-            "updating": "deferred",
-            "callback": on_generation,
-        }
+        func = Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark)
+        options = {"workers": request.runner, "updating": "deferred", "callback": on_generation}
+    elif spec.per_episode_params:
+        func = generation_losses
+        options = {"vectorized": True, "updating": "deferred"}
     result = differential_evolution(
-        loss
-        if request.runner is None
-        else Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark),
+        func,
         bounds=[d.bounds() for d in spec.space],
         seed=request.seed,
         popsize=budget.popsize,
@@ -234,8 +286,9 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     train_rate = float(np.mean([scores[c] for c in spec.classes]))
     wall_s = time.perf_counter() - started
     notes = (
-        f"differential_evolution(seed={request.seed}, popsize={budget.popsize}, maxiter={budget.maxiter}) "
-        f"on {TUNE_SPLIT} classes {'+'.join(spec.classes)} x {budget.n_faults} faults x {budget.n_seeds} "
+        f"differential_evolution(seed={request.seed}, popsize={budget.popsize}, maxiter={budget.maxiter}"
+        + (", updating='deferred'" if options.get("updating") == "deferred" else "")
+        + f") on {TUNE_SPLIT} classes {'+'.join(spec.classes)} x {budget.n_faults} faults x {budget.n_seeds} "
         f"seeds; {calls['n']} evaluations, best tuning-set settled rate {-result.fun:.3f} (incl. tie-break); "
         f"train_settled_rate = mean over those classes on {budget.final_faults} x {budget.final_seeds}: "
         + ", ".join(f"{c} {v:.3f}" for c, v in scores.items())

@@ -4,7 +4,9 @@ The same search, objective and effort as v1's and v2's (differential evolution o
 boxes, 12 faults x 3 seeds per cell), on the pinned train cells of all eleven actuator classes,
 ``nominal`` included (a port that hurts a healthy spacecraft pays for it), and, for ``pid``, whose
 integrator is what acts on a gyro-bias step, the ``sign+gyro_bias`` sensor cell, as on v2. A v3
-episode is six times a v2 one (2400 steps), so a full tuning run costs about six times v2's.
+episode is six times a v2 one (2400 steps), so a full tuning run costs about six times v2's; ``pid``
+reads its parameters per episode, so each DE generation (50 candidates x 432 episodes) flies as one
+batch on the parallel kernels, with scipy's deferred update (``training/tuning.py``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ SPECS: dict[str, TuneSpec] = {
         v1.SPECS[pid.NAME].space,
         benchmark=V3.version,
         classes=(*CLASSES, "sign+gyro_bias"),
+        per_episode_params=True,
     ),
 }
 """The ``scftc-v3`` ports tuned here, over v1's boxes."""
