@@ -176,14 +176,17 @@ def population_losses(spec: TuneSpec, xs: np.ndarray, episodes: Episodes) -> tup
     one batch of ``S`` copies of ``episodes`` (``spec.per_episode_params``): equal, candidate by
     candidate, to ``objective`` on ``episodes`` alone."""
     if not spec.per_episode_params:
-        raise ValueError(f"{spec.controller} takes one parameter set per batch; evaluate its candidates one by one")
+        raise ValueError(
+            f"{spec.controller} takes one parameter set per batch: evaluate candidates one by one"
+        )
     size, n = xs.shape[1], episodes.n
     controller = spec.factory(spec.population(xs, n))
     gates = get_spec(episodes.benchmark).gates
     result = rollout(controller, type(episodes).concat([episodes] * size))
     settled = gate_outcomes(result, gates)["settled"]
+    error = result.dwell_max_error_deg
     scores = [
-        _loss(settled[j * n : (j + 1) * n], result.dwell_max_error_deg[j * n : (j + 1) * n], gates.settled_deg)
+        _loss(settled[j * n : (j + 1) * n], error[j * n : (j + 1) * n], gates.settled_deg)
         for j in range(size)
     ]
     return np.array([s[0] for s in scores]), np.array([s[1] for s in scores])

@@ -57,7 +57,7 @@ VERSION = Version(
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v3/",
     study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
-    tuning="scftc_cli.versions.v3.training.tuning:TUNING",  # pid's box; pid joins the battery once tuned
+    tuning="scftc_cli.versions.v3.training.tuning:TUNING",  # pid and rls_dob join the battery once tuned
     envs=(
         GymEnv(
             "scftc/AttitudeFTC-v3",

@@ -228,7 +228,12 @@ def null_direction(g_hat: np.ndarray) -> np.ndarray:
 
 
 def null_dither(
-    command: np.ndarray, since: np.ndarray, amp: float, steps: int, g_hat: np.ndarray, hold_steps: int = 1
+    command: np.ndarray,
+    since: np.ndarray,
+    amp: float | np.ndarray,
+    steps: int | np.ndarray,
+    g_hat: np.ndarray,
+    hold_steps: int = 1,
 ) -> np.ndarray:
     """Add a ``+-amp`` square wave (each level held ``hold_steps`` steps) along ``null_direction``
     to ``command`` ``(n, m)`` in the episodes whose step count since the estimator (re)opened,
@@ -237,9 +242,12 @@ def null_dither(
     two distinct commands per wheel. This is the v1 dither moved into the null space of the wheel
     array (with good estimates the hub feels none of it), plus a probe of the wheels estimated
     dead: the allocation stops commanding them, so without it an estimate that passed through
-    zero on its way to a reversed sign would never see data again."""
-    active = (since < steps) | (np.abs(g_hat) < DEAD_BELOW).any(axis=1)
-    if amp <= 0.0 or not active.any():
+    zero on its way to a reversed sign would never see data again. ``amp`` and ``steps`` are
+    numbers, or ``(n, 1)`` arrays of one per episode."""
+    amp = np.asarray(amp, dtype=np.float64).reshape(-1, 1)
+    active = (since < np.asarray(steps).reshape(-1)) | (np.abs(g_hat) < DEAD_BELOW).any(axis=1)
+    active &= amp[:, 0] > 0.0
+    if not active.any():
         return command
     v = amp * null_direction(g_hat)
     level = np.where((since // max(int(hold_steps), 1)) % 2 == 0, 1.0, -1.0)[:, None]

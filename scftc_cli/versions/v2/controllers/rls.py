@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 from scftc_cli.baselines.params import Tuned
-from scftc_cli.protocol import Context
+from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.versions.v2.controllers.estimators import (
     CENSORED_WEIGHT,
     CLIP_LEVEL,
@@ -74,23 +74,16 @@ class RLSParams:
 
 
 @numba.njit(cache=True)
-def _rls_step(  # pragma: no cover - compiled
+def rls_step(  # pragma: no cover - compiled
     z, a, s, speed, phi, cov, b_obs, latched, history, slot, count, since, reopened, p0, settings
 ):
     """One step of every wheel's estimator, in place: the change test, the weighted RLS update
-    (``K = P x / (mu / w + x'P x)``), the observer and the latch. ``settings``: forgetting,
-    p_max, g_max, observer gain, detection threshold and steps, latch min steps, window, tol,
-    prior ratio, the clip level, the censored weight, the speed limit (minus the margin)."""
+    (``K = P x / (mu / w + x'P x)``), the observer and the latch. ``settings`` ``(rows, 13)``:
+    forgetting, p_max, g_max, observer gain, detection threshold and steps, latch min steps,
+    window, tol, prior ratio, the clip level, the censored weight, the speed limit (minus the
+    margin); ``p0`` ``(rows, 3, 3)``. One row serves every episode, ``n`` rows one each (a tuner
+    flying a population)."""
     n, m = z.shape
-    mu, p_max, g_max, gain_obs = settings[0], settings[1], settings[2], settings[3]
-    threshold, detect_steps, latch_min, window = settings[4], settings[5], settings[6], settings[7]
-    tol, ratio, clip_level, censored_weight, speed_limit = (
-        settings[8],
-        settings[9],
-        settings[10],
-        settings[11],
-        settings[12],
-    )
     ring = history.shape[0]
     target = np.empty(m)
     linear = np.empty(m, dtype=np.bool_)
@@ -98,6 +91,11 @@ def _rls_step(  # pragma: no cover - compiled
     x = np.empty(3)
     px = np.empty(3)
     for e in range(n):
+        row = e if settings.shape[0] > 1 else 0
+        mu, p_max, g_max, gain_obs = settings[row, 0], settings[row, 1], settings[row, 2], settings[row, 3]
+        threshold, detect_steps = settings[row, 4], settings[row, 5]
+        latch_min, window, tol, ratio = settings[row, 6], settings[row, 7], settings[row, 8], settings[row, 9]
+        clip_level, censored_weight, speed_limit = settings[row, 10], settings[row, 11], settings[row, 12]
         # the sample of each wheel under the estimates it was commanded with (estimators.informative)
         changed = False
         for i in range(m):
@@ -126,7 +124,7 @@ def _rls_step(  # pragma: no cover - compiled
                     history[r, e, i] = phi[e, i, 0]
                 for r in range(3):
                     for c in range(3):
-                        cov[e, i, r, c] = p0[r, c]
+                        cov[e, i, r, c] = p0[row, r, c]
         for i in range(m):
             weight = 1.0 if linear[i] else (censored_weight if censored[i] else 0.0)
             if weight > 0.0 and not latched[e, i]:
@@ -167,8 +165,31 @@ def _rls_step(  # pragma: no cover - compiled
                 low, high = min(low, history[r, e, i]), max(high, history[r, e, i])
             still = high - low <= tol * max(abs(phi[e, i, 0]), 0.1)
             ready = since[e] >= max(latch_min, window)
-            if ready and still and cov[e, i, 0, 0] <= ratio * p0[0, 0]:
+            if ready and still and cov[e, i, 0, 0] <= ratio * p0[row, 0, 0]:
                 latched[e, i] = True
+
+
+def rls_settings(p: RLSParams, wheels: WheelKnowledge) -> np.ndarray:
+    """``rls_step``'s settings ``(rows, 13)`` of ``p``: one row, or one per episode where ``p``'s
+    fields are ``(n, 1)`` arrays."""
+    values = (
+        p.forgetting,
+        p.p_max,
+        p.g_max,
+        p.observer_gain,
+        p.detect_threshold,
+        np.maximum(np.asarray(p.detect_steps).astype(np.int64), 1),
+        p.latch_min_steps,
+        p.latch_window,
+        p.latch_tol,
+        p.latch_prior_ratio,
+        CLIP_LEVEL,
+        CENSORED_WEIGHT,
+        wheels.omega_max_rad_s - SPEED_MARGIN_RAD_S,
+    )
+    columns = [np.asarray(v, dtype=np.float64).reshape(-1) for v in values]
+    rows = max(c.size for c in columns)
+    return np.stack([np.broadcast_to(c, (rows,)) for c in columns], axis=1)
 
 
 class RLSDob(Tuned, EstimatingPort):
@@ -192,23 +213,7 @@ class RLSDob(Tuned, EstimatingPort):
         self.count = np.zeros((n, m), dtype=np.int64)  # consecutive residuals over the threshold
         self.since = np.zeros(n, dtype=np.int64)  # steps since the estimator (re)opened
         self.reopened = np.zeros(n, dtype=np.int64)  # how often (diagnostics)
-        self.settings = np.array(
-            [
-                p.forgetting,
-                p.p_max,
-                p.g_max,
-                p.observer_gain,
-                p.detect_threshold,
-                max(int(p.detect_steps), 1),
-                p.latch_min_steps,
-                p.latch_window,
-                p.latch_tol,
-                p.latch_prior_ratio,
-                CLIP_LEVEL,
-                CENSORED_WEIGHT,
-                self.wheels.omega_max_rad_s - SPEED_MARGIN_RAD_S,
-            ]
-        )
+        self.settings = rls_settings(p, self.wheels)
         self.k = 0
 
     @property
@@ -230,8 +235,8 @@ class RLSDob(Tuned, EstimatingPort):
         return command
 
     def _adapt(self, sample: WheelSample) -> None:
-        """Fold in one step's sample (``_rls_step``, in place)."""
-        _rls_step(
+        """Fold in one step's sample (``rls_step``, in place)."""
+        rls_step(
             sample.z,
             sample.a,
             sample.s,
@@ -245,6 +250,6 @@ class RLSDob(Tuned, EstimatingPort):
             self.count,
             self.since,
             self.reopened,
-            self.p0,
+            self.p0[None],
             self.settings,
         )

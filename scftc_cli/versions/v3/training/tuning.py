@@ -11,10 +11,12 @@ batch on the parallel kernels, with scipy's deferred update (``training/tuning.p
 
 from __future__ import annotations
 
-from scftc_cli.training.tuning import TuneBudget, TuneSpec, Tuning
+from scftc_cli.training.tuning import Dim, TuneBudget, TuneSpec, Tuning
 from scftc_cli.versions.v1.training import tuning as v1
 from scftc_cli.versions.v2.controllers.pid import PIDParams
-from scftc_cli.versions.v3.controllers import pid
+from scftc_cli.versions.v2.controllers.rls import RLSParams
+from scftc_cli.versions.v2.training import tuning as v2
+from scftc_cli.versions.v3.controllers import pid, rls
 from scftc_cli.versions.v3.spec import V3
 
 BUDGETS: dict[str, TuneBudget] = {
@@ -34,7 +36,20 @@ SPECS: dict[str, TuneSpec] = {
         classes=(*CLASSES, "sign+gyro_bias"),
         per_episode_params=True,
     ),
+    rls.NAME: TuneSpec(
+        rls.NAME,
+        RLSParams,
+        rls.RLSDob,
+        tuple(
+            Dim("dither_steps", 0, V3.steps, integer=True) if d.name == "dither_steps" else d
+            for d in v2.SPECS[rls.NAME].space
+        ),
+        benchmark=V3.version,
+        classes=CLASSES,
+        per_episode_params=True,
+    ),
 }
-"""The ``scftc-v3`` ports tuned here, over v1's boxes."""
+"""The ``scftc-v3`` ports tuned here: ``pid`` over v1's box, ``rls_dob`` over v2's, its dither
+allowed to last the whole episode as on v2 (2400 steps here)."""
 
 TUNING = Tuning(specs=SPECS, budgets=BUDGETS, score_sensor_cells=True)
