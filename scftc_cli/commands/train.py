@@ -52,6 +52,9 @@ def train_command(
 
     The artifact goes to --out (default results/train/); evaluate it with
     `scftc eval --controller NAME --params FILE`. Only --in-place replaces the committed one.
+    A tuning run stopped part way (Ctrl-C, a crash) resumes when started again with the same
+    arguments: the losses it computed are kept in ~/.cache/scftc/tuning/ until it completes,
+    and the resumed run ends exactly where the uninterrupted one would.
     """
     from scftc_cli.distributed.runner import cluster, scheduler_address
     from scftc_cli.errors import UsageError

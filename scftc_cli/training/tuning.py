@@ -44,6 +44,7 @@ from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.training import TrainReport, TrainRequest, train_settled_rates
+from scftc_cli.training.journal import EvaluationJournal, journal_path
 from scftc_cli.versions import get_spec, get_version
 
 TUNE_SPLIT = "train"
@@ -218,57 +219,99 @@ class Objective:
         return objective(spec.factory(spec.params(x)), episodes)[0]
 
 
+class Evaluations:
+    """The objective as the search calls it, one candidate at a time (``one``) or a generation at
+    once (``generation``, where the spec reads its parameters per episode). A candidate the run's
+    journal already holds is read back, not flown (``journal.py``: how a stopped run resumes); the
+    rest are flown, recorded and counted for the progress bar."""
+
+    def __init__(
+        self,
+        spec: TuneSpec,
+        episodes: Episodes,
+        journal: EvaluationJournal,
+        request: TrainRequest,
+        expected: int,
+    ) -> None:
+        self.spec, self.episodes, self.journal = spec, episodes, journal
+        self.request, self.expected = request, expected
+        self.calls, self.flown, self.best = 0, 0, -np.inf
+
+    def one(self, x: np.ndarray) -> float:
+        """``loss(x)`` of one candidate ``(d,)``."""
+        score = self.journal.get(x)
+        if score is None:
+            score = objective(self.spec.factory(self.spec.params(x)), self.episodes)
+            self.journal.record([x], [score])
+            self.flown += 1
+        self._count([score])
+        return score[0]
+
+    def generation(self, xs: np.ndarray) -> np.ndarray:
+        """The losses ``(S,)`` of candidates ``xs`` ``(d, S)``: those not in the journal flown as one
+        batch (each scored as alone: ``population_losses``)."""
+        xs = xs if xs.ndim == 2 else xs[:, None]
+        scores = [self.journal.get(xs[:, j]) for j in range(xs.shape[1])]
+        missing = [j for j, score in enumerate(scores) if score is None]
+        if missing:
+            losses, rates = population_losses(self.spec, xs[:, missing], self.episodes)
+            flown = list(zip(losses.tolist(), rates.tolist(), strict=True))
+            self.journal.record([xs[:, j] for j in missing], flown)
+            for j, score in zip(missing, flown, strict=True):
+                scores[j] = score
+            self.flown += len(missing)
+        known = [s for s in scores if s is not None]
+        self._count(known)
+        return np.array([s[0] for s in known])
+
+    def _count(self, scores: list[tuple[float, float]]) -> None:
+        self.calls += len(scores)
+        self.best = max([self.best, *(s[1] for s in scores)])
+        resumed = (
+            f", {self.calls - self.flown} read back from {self.journal.path}"
+            if self.calls > self.flown
+            else ""
+        )
+        self.request.on_progress(
+            min(self.calls / self.expected, 0.99),
+            f"eval {self.calls}/{self.expected}, best train {self.best:.3f}{resumed}",
+        )
+
+
 def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     """Search ``spec``'s box with differential evolution on train episodes; save the winner.
 
     With ``request.runner`` (a Dask cluster) each generation's candidates are evaluated there in
     parallel; that needs scipy's deferred update (``updating="deferred"``), so the result equals the
     serial run with the deferred update, not the immediate one the committed parameters used.
+    Without one, every loss goes to the run's journal as it is computed, and a run started again
+    after a stop reads back what it had (``journal.py``): the same result as one uninterrupted run.
     """
     budget = tuning_of(spec.benchmark).budgets[request.budget]
     started = time.perf_counter()
     episodes = tuning_episodes(budget.n_faults, budget.n_seeds, spec.classes, spec.benchmark)
     dims = len(spec.space)
     expected = (budget.maxiter + 1) * budget.popsize * dims
-    calls = {"n": 0, "best": -np.inf}
-
-    def loss(x: np.ndarray) -> float:
-        value, rate = objective(spec.factory(spec.params(x)), episodes)
-        calls["n"] += 1
-        calls["best"] = max(calls["best"], rate)
-        request.on_progress(
-            min(calls["n"] / expected, 0.99), f"eval {calls['n']}/{expected}, best train {calls['best']:.3f}"
-        )
-        return value
-
+    journal = EvaluationJournal(journal_path(spec.controller, spec.benchmark, request.seed, request.budget))
+    evaluations = Evaluations(spec, episodes, journal, request, expected)
     generations = {"n": 0}
 
     def on_generation(intermediate_result: Any) -> None:
         generations["n"] += 1
-        calls["n"] = (generations["n"] + 1) * budget.popsize * dims
+        evaluations.calls = (generations["n"] + 1) * budget.popsize * dims
         request.on_progress(
             min(generations["n"] / (budget.maxiter + 1), 0.99),
             f"generation {generations['n']}/{budget.maxiter} on the cluster, "
             f"best loss {intermediate_result.fun:.4f}",
         )
 
-    def generation_losses(xs: np.ndarray) -> np.ndarray:
-        losses, rates = population_losses(spec, xs if xs.ndim == 2 else xs[:, None], episodes)
-        calls["n"] += losses.size
-        calls["best"] = max(calls["best"], float(rates.max()))
-        request.on_progress(
-            min(calls["n"] / expected, 0.99),
-            f"eval {calls['n']}/{expected} ({losses.size} per batch), best train {calls['best']:.3f}",
-        )
-        return losses
-
-    func: Callable[[np.ndarray], Any] = loss
+    func: Callable[[np.ndarray], Any] = evaluations.one
     options: dict[str, Any] = {}
-    if request.runner is not None:
+    if request.runner is not None:  # the workers fly the candidates: no journal
         func = Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark)
         options = {"workers": request.runner, "updating": "deferred", "callback": on_generation}
     elif spec.per_episode_params:
-        func = generation_losses
+        func = evaluations.generation
         options = {"vectorized": True, "updating": "deferred"}
     result = differential_evolution(
         func,
@@ -292,19 +335,21 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
         f"differential_evolution(seed={request.seed}, popsize={budget.popsize}, maxiter={budget.maxiter}"
         + (", updating='deferred'" if options.get("updating") == "deferred" else "")
         + f") on {TUNE_SPLIT} classes {'+'.join(spec.classes)} x {budget.n_faults} faults x {budget.n_seeds} "
-        f"seeds; {calls['n']} evaluations, best tuning-set settled rate {-result.fun:.3f} (incl. tie-break); "
+        f"seeds; {evaluations.calls} evaluations, "
+        f"best tuning-set settled rate {-result.fun:.3f} (incl. tie-break); "
         f"train_settled_rate = mean over those classes on {budget.final_faults} x {budget.final_seeds}: "
         + ", ".join(f"{c} {v:.3f}" for c, v in scores.items())
         + f"; wall {wall_s:.0f} s"
     )
     provenance = request.provenance(train_rate, notes)
     path = save_params(spec.controller, dataclasses.asdict(best), provenance, request.artifact_out())
+    journal.close()
     request.on_progress(1.0, "done")
     return TrainReport(
         controller=spec.controller,
         artifact=path,
         train_settled_rate=train_rate,
-        details={"train_scores": scores, "evaluations": calls["n"], "wall_s": wall_s},
+        details={"train_scores": scores, "evaluations": evaluations.calls, "wall_s": wall_s},
     )
 
 
