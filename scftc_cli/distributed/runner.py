@@ -128,6 +128,10 @@ class Runner:
             progress.advance(weight(items[index[future.key]]))
         return self.client.gather(futures)
 
+    def workers(self) -> int:
+        """How many workers the cluster has now."""
+        return max(1, len(self.client.scheduler_info().get("workers", {})))
+
     def __call__(self, fn: Callable[[Any], Any], items: Any) -> list[Any]:
         """The ``map``-like callable ``scipy.optimize.differential_evolution(workers=...)`` takes."""
         return self.map(fn, list(items))

@@ -219,6 +219,13 @@ class Objective:
         return objective(spec.factory(spec.params(x)), episodes)[0]
 
 
+BATCH_EPISODES = 4_800
+"""A generation flies in batches of at most this many episodes (``Evaluations.generation``): below
+the kernels' parallel threshold (5 000), so that each process steps its batch on one core and a
+cluster's workers do not contend for threads. Batches of 4 320 ran at 3.1 us per episode-step on one
+core, one candidate's 432 episodes at 4.5 us (docs/scaling.md)."""
+
+
 class Evaluations:
     """The objective as the search calls it, one candidate at a time (``one``) or a generation at
     once (``generation``, where the spec reads its parameters per episode). A candidate the run's
@@ -228,12 +235,13 @@ class Evaluations:
     def __init__(
         self,
         spec: TuneSpec,
+        budget: TuneBudget,
         episodes: Episodes,
         journal: EvaluationJournal,
         request: TrainRequest,
         expected: int,
     ) -> None:
-        self.spec, self.episodes, self.journal = spec, episodes, journal
+        self.spec, self.budget, self.episodes, self.journal = spec, budget, episodes, journal
         self.request, self.expected = request, expected
         self.calls, self.flown, self.best = 0, 0, -np.inf
 
@@ -248,18 +256,33 @@ class Evaluations:
         return score[0]
 
     def generation(self, xs: np.ndarray) -> np.ndarray:
-        """The losses ``(S,)`` of candidates ``xs`` ``(d, S)``: those not in the journal flown as one
-        batch (each scored as alone: ``population_losses``)."""
+        """The losses ``(S,)`` of candidates ``xs`` ``(d, S)``: those not in the journal flown in
+        batches of at most ``BATCH_EPISODES`` episodes (each candidate scored as alone:
+        ``population_losses``), spread over the cluster's workers where there is one."""
         xs = xs if xs.ndim == 2 else xs[:, None]
         scores = [self.journal.get(xs[:, j]) for j in range(xs.shape[1])]
         missing = [j for j, score in enumerate(scores) if score is None]
-        if missing:
-            losses, rates = population_losses(self.spec, xs[:, missing], self.episodes)
+        runner = self.request.runner
+        per_batch = max(1, BATCH_EPISODES // self.episodes.n)
+        parts = -(-len(missing) // per_batch)
+        if runner is not None and missing:  # whole rounds of the workers, so none waits on another
+            workers = runner.workers()
+            parts = min(len(missing), -(-parts // workers) * workers)
+        groups = (
+            [list(g) for g in np.array_split(np.array(missing, dtype=np.int64), parts)] if missing else []
+        )
+        if runner is not None and groups:
+            spec, budget = self.spec, self.budget
+            fly = PopulationObjective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark)
+            results = runner.map(fly, [xs[:, g] for g in groups])
+        else:
+            results = (population_losses(self.spec, xs[:, g], self.episodes) for g in groups)
+        for group, (losses, rates) in zip(groups, results, strict=True):
             flown = list(zip(losses.tolist(), rates.tolist(), strict=True))
-            self.journal.record([xs[:, j] for j in missing], flown)
-            for j, score in zip(missing, flown, strict=True):
+            self.journal.record([xs[:, j] for j in group], flown)
+            for j, score in zip(group, flown, strict=True):
                 scores[j] = score
-            self.flown += len(missing)
+            self.flown += len(group)
         known = [s for s in scores if s is not None]
         self._count(known)
         return np.array([s[0] for s in known])
@@ -278,6 +301,22 @@ class Evaluations:
         )
 
 
+@dataclass(frozen=True)
+class PopulationObjective:
+    """``population_losses`` of one tuning run for a group of candidates ``(d, S)``, picklable so that
+    a Dask cluster's workers can fly it (each draws its pinned tuning episodes once)."""
+
+    controller: str
+    n_faults: int
+    n_seeds: int
+    benchmark: str
+
+    def __call__(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        spec = tune_spec(self.controller, self.benchmark)
+        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes, spec.benchmark)
+        return population_losses(spec, xs, episodes)
+
+
 def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     """Search ``spec``'s box with differential evolution on train episodes; save the winner.
 
@@ -293,7 +332,7 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     dims = len(spec.space)
     expected = (budget.maxiter + 1) * budget.popsize * dims
     journal = EvaluationJournal(journal_path(spec.controller, spec.benchmark, request.seed, request.budget))
-    evaluations = Evaluations(spec, episodes, journal, request, expected)
+    evaluations = Evaluations(spec, budget, episodes, journal, request, expected)
     generations = {"n": 0}
 
     def on_generation(intermediate_result: Any) -> None:
@@ -307,12 +346,12 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
 
     func: Callable[[np.ndarray], Any] = evaluations.one
     options: dict[str, Any] = {}
-    if request.runner is not None:  # the workers fly the candidates: no journal
-        func = Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark)
-        options = {"workers": request.runner, "updating": "deferred", "callback": on_generation}
-    elif spec.per_episode_params:
+    if spec.per_episode_params:  # whole generations, in batches (on the cluster's workers if any)
         func = evaluations.generation
         options = {"vectorized": True, "updating": "deferred"}
+    elif request.runner is not None:  # the workers fly the candidates one by one: no journal
+        func = Objective(spec.controller, budget.n_faults, budget.n_seeds, spec.benchmark)
+        options = {"workers": request.runner, "updating": "deferred", "callback": on_generation}
     result = differential_evolution(
         func,
         bounds=[d.bounds() for d in spec.space],

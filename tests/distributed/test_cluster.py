@@ -200,3 +200,26 @@ def test_tuning_on_the_cluster_equals_the_serial_deferred_run(dask_runner: Runne
         tuning.tune(tuning.tune_spec("nussbaum", "scftc-v1"), request)
         out[label] = yaml.safe_load((tmp_path / f"{label}.yaml").read_text())["params"]
     assert out["cluster"] == out["serial"]
+
+
+@pytest.mark.slow
+def test_a_generation_spread_over_the_workers_equals_the_one_in_process(dask_runner: Runner, tmp_path: Path):
+    spec = tuning.tune_spec("pid", "scftc-v3")
+    assert spec.per_episode_params
+    out = {}
+    for label, runner in (("cluster", dask_runner), ("process", None)):
+        request = TrainRequest(
+            controller="pid",
+            benchmark="scftc-v3",
+            budget="quick",
+            seed=4,
+            out=tmp_path / f"{label}.yaml",
+            runner=runner,
+        )
+        tuning.tune(spec, request)
+        out[label] = yaml.safe_load((tmp_path / f"{label}.yaml").read_text())
+    assert out["cluster"]["params"] == out["process"]["params"]
+    assert (
+        out["cluster"]["provenance"]["train_settled_rate"]
+        == out["process"]["provenance"]["train_settled_rate"]
+    )

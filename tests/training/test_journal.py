@@ -97,7 +97,8 @@ def test_a_generation_flies_only_the_candidates_the_journal_lacks(tmp_path, monk
 
     monkeypatch.setattr(tuning, "population_losses", recording)
     request = TrainRequest(controller="pid", benchmark="scftc-v3", seed=0, budget="quick")
-    evaluations = tuning.Evaluations(spec, episodes, journal, request, expected=3)
+    budget = tuning.tuning_of("scftc-v3").budgets["quick"]
+    evaluations = tuning.Evaluations(spec, budget, episodes, journal, request, expected=3)
     losses = evaluations.generation(xs)
     assert batches == [2]
     np.testing.assert_array_equal(losses, [reference[0], -5.0, reference[2]])
