@@ -17,11 +17,16 @@ actuator cell, and on a version that asks for it every sensor cell, is scored fo
 Same seed, same result: the episodes are pinned and DE is seeded.
 
 A box whose controller reads every parameter per episode (``TuneSpec.per_episode_params``) flies a
-whole DE generation as one batch: each candidate's copy of the tuning episodes, one row block per
-candidate (``population_losses``). The episodes never mix, so each candidate's loss is the bits its
-own batch would give; DE then runs with scipy's deferred update (the whole generation is proposed
-before any of it is judged), so the result is that of the deferred serial search, and of the same
-search on a Dask cluster.
+DE generation's candidates together: each candidate's copy of the tuning episodes, one row block
+per candidate, in batches of at most ``BATCH_EPISODES`` (``population_losses``), on a Dask
+cluster's workers where there is one. The episodes never mix, so each candidate's loss is the bits
+its own batch would give; DE then runs with scipy's deferred update (the whole generation is
+proposed before any of it is judged), so the result is that of the deferred serial search, with or
+without a cluster.
+
+Every loss is written to the run's journal as it is computed (``journal.py``), except where a
+cluster flies the candidates one by one: a run stopped part way and started again reads them back
+and ends exactly where the uninterrupted run would.
 """
 
 from __future__ import annotations
@@ -83,7 +88,7 @@ class TuneSpec:
     benchmark: str  # the version whose train split it is tuned on
     per_episode_params: bool = False
     """The controller also takes every parameter as an ``(n, 1)`` array, row ``e`` episode ``e``'s
-    value: its generations are flown as one batch (``population_losses``)."""
+    value: its generations' candidates fly together (``population_losses``)."""
 
     def params(self, x: np.ndarray) -> Any:
         """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
@@ -322,9 +327,9 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
 
     With ``request.runner`` (a Dask cluster) each generation's candidates are evaluated there in
     parallel; that needs scipy's deferred update (``updating="deferred"``), so the result equals the
-    serial run with the deferred update, not the immediate one the committed parameters used.
-    Without one, every loss goes to the run's journal as it is computed, and a run started again
-    after a stop reads back what it had (``journal.py``): the same result as one uninterrupted run.
+    serial run with the deferred update, not the immediate one the committed parameters used (a
+    per-episode box always runs deferred, in batches: the module docstring). The journal keeps
+    every loss computed in this process, so that a stopped run resumes (``journal.py``).
     """
     budget = tuning_of(spec.benchmark).budgets[request.budget]
     started = time.perf_counter()
