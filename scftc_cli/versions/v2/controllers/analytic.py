@@ -15,7 +15,16 @@ from scftc_cli.protocol import Context, Controller
 from scftc_cli.versions.v2.controllers.law import AnalyticLaw, allocation, wheels_of
 
 
-class PD(Controller):
+class _Analytic(Controller):
+    """A controller that flies one ``AnalyticLaw`` (built by ``reset``)."""
+
+    law: AnalyticLaw
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.law.command(obs)
+
+
+class PD(_Analytic):
     """Fault-unaware: the analytic law through the nominal allocation ``pinv(G)``, friction
     feed-forward at the nominal ``fC0``."""
 
@@ -26,11 +35,8 @@ class PD(Controller):
         nominal = (allocation(gain, wheels), gain, np.full((n, m), wheels.coulomb_nm), np.zeros((n, m)))
         self.law = AnalyticLaw(n, context, nominal, nominal, np.zeros(n, dtype=np.int64))
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.law.command(obs)
 
-
-class Teacher(Controller):
+class Teacher(_Analytic):
     """Privileged: the analytic law through the true effectiveness ``g(t)`` (healthy before the
     onset), no offset or fault-friction compensation (an upper bound for gain identification)."""
 
@@ -52,9 +58,6 @@ class Teacher(Controller):
         before = (allocation(healthy, wheels), healthy, nominal, no_bias)
         after = (allocation(gain_after, wheels), gain_after, coulomb_after, bias_after)
         self.law = AnalyticLaw(n, context, before, after, np.asarray(fault.onset_step))
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.law.command(obs)
 
 
 class BiasOracle(Teacher):
