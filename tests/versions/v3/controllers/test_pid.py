@@ -75,30 +75,3 @@ def test_quick_tuning_flies_train_episodes_only_and_writes_parameters_in_the_box
     assert doc["provenance"]["command"].startswith("scftc train --benchmark scftc-v3 --controller pid")
     assert doc["provenance"]["benchmark_version"] == "scftc-v3"
     assert dataclasses.asdict(params).keys() == dataclasses.asdict(PIDParams()).keys()
-
-
-def test_a_generation_flown_as_one_batch_scores_every_candidate_as_alone():
-    spec = SPECS["pid"]
-    assert spec.per_episode_params
-    episodes = tuning.tuning_episodes(1, 1, ("gain", "nominal", "sign+gyro_bias"), "scftc-v3")
-    rng = np.random.default_rng(3)
-    low, high = np.array([d.bounds() for d in spec.space]).T
-    xs = low[:, None] + (high - low)[:, None] * rng.uniform(size=(len(spec.space), 3))
-    xs[:, 0] = spec.start()  # the documented values among them
-    batch, rates = tuning.population_losses(spec, xs, episodes)
-    alone = [tuning.objective(spec.factory(spec.params(xs[:, j])), episodes) for j in range(3)]
-    np.testing.assert_array_equal(batch, [a[0] for a in alone])  # the same bits, candidate by candidate
-    np.testing.assert_array_equal(rates, [a[1] for a in alone])
-    assert len(set(batch)) == 3  # the candidates really differ, so rows were not mixed up unnoticed
-
-
-def test_the_population_puts_each_candidate_on_its_own_rows():
-    spec = SPECS["pid"]
-    xs = np.array([[d.bounds()[0], d.bounds()[1]] for d in spec.space])
-    params = spec.population(xs, repeats=3)
-    for j in range(2):
-        alone = spec.params(xs[:, j])
-        for d in spec.space:
-            column = getattr(params, d.name)
-            assert column.shape == (6, 1)
-            np.testing.assert_array_equal(column[3 * j : 3 * j + 3, 0], getattr(alone, d.name))

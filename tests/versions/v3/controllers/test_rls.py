@@ -1,6 +1,6 @@
 """scftc-v3's ``rls_dob`` port: v2's estimator on the mission law. It identifies every wheel's
 gain through a mid-flight fault, refuses a version without rods, keeps v2's dither rule per
-episode, and a generation of candidates flown as one batch scores each as alone."""
+episode."""
 
 from __future__ import annotations
 
@@ -11,11 +11,9 @@ from scftc_cli.baselines.checker import check_controller
 from scftc_cli.errors import UsageError
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.training import tuning
 from scftc_cli.versions.v2.controllers.estimators import null_dither
 from scftc_cli.versions.v2.controllers.rls import RLSParams
 from scftc_cli.versions.v3.controllers.rls import RLSDob
-from scftc_cli.versions.v3.training.tuning import SPECS
 
 BED = testbeds.testbed("scftc-v3")
 
@@ -48,19 +46,3 @@ def test_the_dither_with_one_setting_per_episode_is_each_episodes_own():
         alone = null_dither(command[e : e + 1], since[e : e + 1], amp[e], steps[e], g_hat[e : e + 1])
         np.testing.assert_array_equal(rows[e], alone[0])
     assert not np.array_equal(rows, command)
-
-
-@pytest.mark.slow
-def test_a_generation_flown_as_one_batch_scores_every_candidate_as_alone():
-    spec = SPECS["rls_dob"]
-    assert spec.per_episode_params
-    episodes = tuning.tuning_episodes(1, 1, ("gain", "loss", "nominal"), "scftc-v3")
-    rng = np.random.default_rng(5)
-    low, high = np.array([d.bounds() for d in spec.space]).T
-    xs = low[:, None] + (high - low)[:, None] * rng.uniform(size=(len(spec.space), 3))
-    xs[:, 0] = spec.start()
-    batch, rates = tuning.population_losses(spec, xs, episodes)
-    alone = [tuning.objective(spec.factory(spec.params(xs[:, j])), episodes) for j in range(3)]
-    np.testing.assert_array_equal(batch, [a[0] for a in alone])
-    np.testing.assert_array_equal(rates, [a[1] for a in alone])
-    assert len(set(batch)) == 3
