@@ -218,9 +218,13 @@ class Objective:
     n_seeds: int
     benchmark: str
 
-    def __call__(self, x: np.ndarray) -> float:
+    def run(self) -> tuple[TuneSpec, Episodes]:
+        """The run's box and its pinned tuning episodes."""
         spec = tune_spec(self.controller, self.benchmark)
-        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes, spec.benchmark)
+        return spec, tuning_episodes(self.n_faults, self.n_seeds, spec.classes, spec.benchmark)
+
+    def __call__(self, x: np.ndarray) -> float:
+        spec, episodes = self.run()
         return objective(spec.factory(spec.params(x)), episodes)[0]
 
 
@@ -307,18 +311,12 @@ class Evaluations:
 
 
 @dataclass(frozen=True)
-class PopulationObjective:
+class PopulationObjective(Objective):
     """``population_losses`` of one tuning run for a group of candidates ``(d, S)``, picklable so that
     a Dask cluster's workers can fly it (each draws its pinned tuning episodes once)."""
 
-    controller: str
-    n_faults: int
-    n_seeds: int
-    benchmark: str
-
-    def __call__(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        spec = tune_spec(self.controller, self.benchmark)
-        episodes = tuning_episodes(self.n_faults, self.n_seeds, spec.classes, spec.benchmark)
+    def __call__(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[override]
+        spec, episodes = self.run()
         return population_losses(spec, xs, episodes)
 
 
