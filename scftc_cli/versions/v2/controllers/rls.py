@@ -192,6 +192,53 @@ def rls_settings(p: RLSParams, wheels: WheelKnowledge) -> np.ndarray:
     return np.stack([np.broadcast_to(c, (rows,)) for c in columns], axis=1)
 
 
+class WheelRLS:
+    """Every wheel's estimator of a batch (``rls_step``'s state), shared by the v2 and v3 ports.
+
+    ``phi`` ``(n, m, 3)`` the estimates ``(g, b, kappa)`` (``kappa`` in units of ``u_max``), ``cov``
+    ``(n, m, 3, 3)`` their covariance, ``b_obs`` ``(n, m)`` the offset the law uses (the RLS's, then
+    the observer's), ``history`` ``(latch_window + 1, n, m)`` the ring buffer of ``g_hat`` the latch
+    reads, ``latched`` and ``count`` ``(n, m)``, ``reopened`` ``(n,)`` (diagnostics). ``p``'s fields
+    may be ``(n, 1)`` arrays (one setting per episode, a tuner's population) except
+    ``latch_window``, which sets the ring buffer's length.
+    """
+
+    def __init__(self, n: int, m: int, p: RLSParams, wheels: WheelKnowledge) -> None:
+        self.settings = rls_settings(p, wheels)
+        rows = self.settings.shape[0]
+        diagonal = np.stack(
+            [np.broadcast_to(np.asarray(v, dtype=np.float64).reshape(-1), (rows,))
+             for v in (p.p0_g, p.p0_b, p.p0_kappa)],
+            axis=1,
+        )  # fmt: skip
+        self.p0 = diagonal[:, :, None] * np.eye(3)  # (rows, 3, 3): P0 of each settings row
+        self.phi = np.zeros((n, m, 3))
+        self.phi[..., 0], self.phi[..., 2] = 1.0, wheels.coulomb_nm / wheels.u_max_nm
+        self.cov = np.broadcast_to(self.p0[:, None], (n, m, 3, 3)).copy()
+        self.b_obs = np.zeros((n, m))
+        window = int(np.max(p.latch_window))
+        if np.any(np.asarray(p.latch_window) != window):
+            raise ValueError("latch_window sets the ring buffer's length: one value for the whole batch")
+        self.history = np.ones((window + 1, n, m))
+        self.latched = np.zeros((n, m), dtype=bool)
+        self.count = np.zeros((n, m), dtype=np.int64)  # consecutive residuals over the threshold
+        self.reopened = np.zeros(n, dtype=np.int64)
+
+    @property
+    def estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each, as the law uses them."""
+        return self.phi[..., 0], self.b_obs, self.phi[..., 2]
+
+    def update(self, sample: WheelSample, step: int, since: np.ndarray) -> None:
+        """Fold in the sample of control step ``step`` (its ring-buffer slot); ``since`` ``(n,)``
+        (steps since each episode's estimator (re)opened) is set back to 0 where it re-opens."""
+        rls_step(
+            sample.z, sample.a, sample.s, sample.speed_rad_s, self.phi, self.cov, self.b_obs,
+            self.latched, self.history, step % self.history.shape[0], self.count, since,
+            self.reopened, self.p0, self.settings,
+        )  # fmt: skip
+
+
 class RLSDob(Tuned, EstimatingPort):
     """Estimate-then-control: per-wheel RLS of ``(g, b, kappa)``, latched, then the observer; a
     residual test re-opens the latch."""
@@ -201,25 +248,15 @@ class RLSDob(Tuned, EstimatingPort):
     params: RLSParams
 
     def reset(self, n: int, context: Context) -> None:
-        p = self.params
         m = self._start(n, context)
-        self.p0 = np.diag([p.p0_g, p.p0_b, p.p0_kappa])
-        self.phi = np.zeros((n, m, 3))  # (g, b, kappa) of every wheel
-        self.phi[..., 0], self.phi[..., 2] = 1.0, self.wheels.coulomb_nm / self.wheels.u_max_nm
-        self.cov = np.broadcast_to(self.p0, (n, m, 3, 3)).copy()
-        self.b_obs = np.zeros((n, m))  # the offset the law uses: the RLS's, then the observer's
-        self.history = np.ones((p.latch_window + 1, n, m))  # ring buffer of g_hat
-        self.latched = np.zeros((n, m), dtype=bool)
-        self.count = np.zeros((n, m), dtype=np.int64)  # consecutive residuals over the threshold
+        self.rls = WheelRLS(n, m, self.params, self.wheels)
         self.since = np.zeros(n, dtype=np.int64)  # steps since the estimator (re)opened
-        self.reopened = np.zeros(n, dtype=np.int64)  # how often (diagnostics)
-        self.settings = rls_settings(p, self.wheels)
         self.k = 0
 
     @property
     def estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each, as the law uses them."""
-        return self.phi[..., 0], self.b_obs, self.phi[..., 2]
+        return self.rls.estimates
 
     def _command(self, demand_nm: np.ndarray, tach: np.ndarray) -> np.ndarray:
         """The law and the dither in one fused pass (``law_command``)."""
@@ -235,21 +272,5 @@ class RLSDob(Tuned, EstimatingPort):
         return command
 
     def _adapt(self, sample: WheelSample) -> None:
-        """Fold in one step's sample (``rls_step``, in place)."""
-        rls_step(
-            sample.z,
-            sample.a,
-            sample.s,
-            sample.speed_rad_s,
-            self.phi,
-            self.cov,
-            self.b_obs,
-            self.latched,
-            self.history,
-            self.k % (self.params.latch_window + 1),
-            self.count,
-            self.since,
-            self.reopened,
-            self.p0[None],
-            self.settings,
-        )
+        """Fold in one step's sample (``WheelRLS.update``)."""
+        self.rls.update(sample, self.k, self.since)

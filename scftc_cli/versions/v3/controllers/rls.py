@@ -32,7 +32,7 @@ from scftc_cli.versions.v2.controllers.estimators import (
     null_dither,
 )
 from scftc_cli.versions.v2.controllers.law import friction_nm
-from scftc_cli.versions.v2.controllers.rls import RLSParams, rls_settings, rls_step
+from scftc_cli.versions.v2.controllers.rls import RLSParams, WheelRLS
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
 from scftc_cli.versions.v3.controllers.law import rate_limited_demand, split_observation
 from scftc_cli.versions.v3.spec import V3
@@ -53,31 +53,13 @@ class RLSDob(Tuned, MissionLaw):
         super().reset(n, context)
         p = self.params
         self.meter = WheelTorqueMeter(context, friction="ramp")
-        self.settings = rls_settings(p, self.wheels)
-        diagonal = np.stack(
-            [np.broadcast_to(np.asarray(v, dtype=np.float64).reshape(-1), (self.settings.shape[0],))
-             for v in (p.p0_g, p.p0_b, p.p0_kappa)],
-            axis=1,
-        )  # fmt: skip
-        self.p0 = diagonal[:, :, None] * np.eye(3)  # (rows, 3, 3)
-        m = self.m
-        self.phi = np.zeros((n, m, 3))  # (g, b, kappa) of every wheel
-        self.phi[..., 0], self.phi[..., 2] = 1.0, self.wheels.coulomb_nm / self.wheels.u_max_nm
-        self.cov = np.broadcast_to(self.p0[:, None], (n, m, 3, 3)).copy()
-        self.b_obs = np.zeros((n, m))  # the offset the law uses: the RLS's, then the observer's
-        window = int(np.max(p.latch_window))
-        if np.any(np.asarray(p.latch_window) != window):
-            raise ValueError("latch_window sets the ring buffer's length: one value for the whole batch")
-        self.history = np.ones((window + 1, n, m))  # ring buffer of g_hat
-        self.latched = np.zeros((n, m), dtype=bool)
-        self.count = np.zeros((n, m), dtype=np.int64)  # consecutive residuals over the threshold
+        self.rls = WheelRLS(n, self.m, p, self.wheels)
         self.since = np.zeros(n, dtype=np.int64)  # steps since the estimator (re)opened
-        self.reopened = np.zeros(n, dtype=np.int64)  # how often (diagnostics)
 
     @property
     def estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(g_hat, b_hat, kappa_hat)`` ``(n, m)`` each, as the law uses them."""
-        return self.phi[..., 0], self.b_obs, self.phi[..., 2]
+        return self.rls.estimates
 
     def wheel_model(self, tach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         g_hat, b_hat, kappa_hat = self.estimates
@@ -93,13 +75,9 @@ class RLSDob(Tuned, MissionLaw):
         _, _, gyro, tach, *_ = split_observation(obs)
         sample = self.meter.read(gyro, tach)
         if sample is not None:
-            rls_step(
-                sample.z, sample.a, sample.s, sample.speed_rad_s, self.phi, self.cov, self.b_obs,
-                self.latched, self.history, self.k % self.history.shape[0], self.count, self.since,
-                self.reopened, self.p0, self.settings,
-            )  # fmt: skip
+            self.rls.update(sample, self.k, self.since)
         command = super().act(obs)  # the law through the estimates (advances self.k)
-        wheels = null_dither(command[:, :m], self.since, p.dither_amp, p.dither_steps, self.phi[..., 0])
+        wheels = null_dither(command[:, :m], self.since, p.dither_amp, p.dither_steps, self.rls.phi[..., 0])
         self.meter.hold(wheels)
         self.since += 1
         command[:, :m] = wheels

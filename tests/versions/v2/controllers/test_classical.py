@@ -209,9 +209,9 @@ def test_rls_identifies_every_wheel_and_reopens_after_a_late_fault():
     bias = np.array([0.1, -0.15, 0.05, 0.0])
     episodes = with_fault(episodes, gain=gain, bias=bias, onset_step=150, inertia_scale=1.2)
     controller = RLSDob(RLSParams(dither_steps=20, p0_g=1e3, p0_b=1e2, p_max=1e4, latch_prior_ratio=0.005))
-    result, latched = trace(controller, episodes, lambda c: c.latched.copy())
+    result, latched = trace(controller, episodes, lambda c: c.rls.latched.copy())
     assert latched[140].all()  # every wheel latched on the healthy plant before the onset
-    assert np.all(controller.reopened >= 1)
+    assert np.all(controller.rls.reopened >= 1)
     g_hat, b_hat, _ = controller.estimates
     assert np.abs(g_hat - gain).max() < 0.05 and np.abs(b_hat - bias).max() < 0.02
     assert np.all(result.dwell_max_error_deg <= V2.gates.settled_deg)
