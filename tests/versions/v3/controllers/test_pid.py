@@ -1,6 +1,6 @@
 """scftc-v3's ``pid`` port: the mission law plus v2's integral action. Without integral gain it is
 ``pd`` to the bit; its integrator winds only in a dwell with no wheel clipped, and stays clamped;
-its tuner flies train episodes only and writes parameters inside v1's box."""
+its tuner flies train episodes only and writes parameters inside its box (``PID_SPACE``)."""
 
 from __future__ import annotations
 
