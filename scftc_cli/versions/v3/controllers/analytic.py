@@ -21,12 +21,12 @@ from scftc_cli.sim.mrp import cross
 from scftc_cli.versions.v2.controllers.law import AttitudeFuser, allocate, allocation, friction_nm
 from scftc_cli.versions.v2.sim.faults import sensor_code
 from scftc_cli.versions.v2.spec import V2
+from scftc_cli.versions.v3.controllers import fused
 from scftc_cli.versions.v3.controllers.law import (
     NULL_RATE_PER_S,
     NULL_TARGET_RAD_S,
     attitude_error,
     null_space_commands,
-    rate_limited_demand,
     rod_commands,
     rods_of,
     split_observation,
@@ -91,13 +91,32 @@ class MissionLaw(Controller):
     def demand(self, error: np.ndarray, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
         """The body torque demand ``(n, 3)`` N m for the error to the target ``(n, 3)`` MRP (the rate-
         limited PD with its gyroscopic feed-forward unless a subclass adds to it)."""
-        return rate_limited_demand(error, gyro, tach, self.context)
+        return fused.rate_limited_demand(error, gyro, tach, self.context)
 
     def commanded(self, error: np.ndarray, wheels: np.ndarray) -> None:
         """Told the step's clipped wheel commands ``(n, m)`` and the error they answered (nothing to
         do unless a subclass keeps state on them)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
+        heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
+        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
+        error = fused.attitude_error(sigma, target)
+        demand = self.demand(error, gyro, tach)
+        field = self.field_body(magnetometer, sigma)
+        rod_gain = self.rod_gain()
+        unload = self.unloading(time_left)
+        gain, offset, friction = self.wheel_model(tach)
+        matrix = self.nominal if np.all(gain == 1.0) else allocation(gain, self.wheels)
+        command = fused.law_commands(
+            demand, field, rod_gain, unload, gain, offset, friction, self.disturbance_nm(sigma), tach, matrix,
+            self.wheels, self.rods, self.null_rate_per_s, self.null_target_rad_s,
+        )  # fmt: skip
+        self.commanded(error, command[:, : self.m])
+        self.k += 1
+        return command
+
+    def act_reference(self, obs: np.ndarray) -> np.ndarray:
+        """``act`` in numpy, through ``law.py`` (its readable definition; the same bits)."""
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
         error = attitude_error(sigma, target)

@@ -23,7 +23,7 @@ from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.pid import PIDParams
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
-from scftc_cli.versions.v3.controllers.law import rate_limited_demand
+from scftc_cli.versions.v3.controllers.fused import rate_limited_demand
 from scftc_cli.versions.v3.spec import V3
 
 NAME = "pid"

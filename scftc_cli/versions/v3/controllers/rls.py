@@ -34,7 +34,8 @@ from scftc_cli.versions.v2.controllers.estimators import (
 from scftc_cli.versions.v2.controllers.law import friction_nm
 from scftc_cli.versions.v2.controllers.rls import RLSParams, WheelRLS
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
-from scftc_cli.versions.v3.controllers.law import rate_limited_demand, split_observation
+from scftc_cli.versions.v3.controllers.fused import rate_limited_demand
+from scftc_cli.versions.v3.controllers.law import split_observation
 from scftc_cli.versions.v3.spec import V3
 
 NAME = "rls_dob"

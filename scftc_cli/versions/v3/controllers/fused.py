@@ -1,0 +1,291 @@
+"""The mission law's arithmetic as compiled passes over the batch: the same bits as ``law.py``.
+
+``law.py`` and ``v2``'s ``allocate`` stay the readable definition of the law; the functions here
+perform exactly their operations, in the same order, per episode in one numba loop (the small dot
+products through ``scftc_cli.sim.sums``, which sums them as numpy and OpenBLAS do), so a rollout
+gives the same bits either way (``tests/versions/v3/controllers/test_fused.py``). Numpy spends a
+v3 step of ``pd`` on some forty small array operations; here it is three calls.
+
+- ``attitude_error``: ``law.attitude_error`` (the MRP composition, shadow-switched).
+- ``rate_limited_demand``: ``law.rate_limited_demand``.
+- ``law_commands``: the rest of ``MissionLaw.act`` once its hooks have answered: the unloading
+  dipole and the rod commands, the rods' torque fed forward, ``allocate`` through the given
+  allocation matrix, the null-space drain and the clip; wheels and rods ``(n, m + 3)``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
+from scftc_cli.sim.sums import einsum3, gemm4
+from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
+from scftc_cli.versions.v3.controllers.law import (
+    NULL_RATE_PER_S,
+    NULL_TARGET_RAD_S,
+    SLEW_RATE_RAD_S,
+    UNLOAD_GAIN_PER_S,
+)
+
+ALLOCATE_DEAD_BELOW = 1e-6
+"""``allocate``'s default: a believed gain at or below it is a dead wheel."""
+
+PARALLEL_MIN_BATCH = 5_000
+"""From this many episodes on the passes run on numba's threads (as the plant); both kernels run
+the same per-episode code: the same bits."""
+
+
+def _rows(value: np.ndarray | float) -> np.ndarray:
+    """A setting as ``(rows,)``: one row for every episode, or one per episode (an ``(n, 1)``)."""
+    return np.ascontiguousarray(np.asarray(value, dtype=np.float64).reshape(-1))
+
+
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def attitude_error(sigma: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``law.attitude_error``: ``sigma_BR`` ``(n, 3)`` of the body relative to the target."""
+    out = np.empty(sigma.shape)
+    kernel = _error_parallel if sigma.shape[0] >= PARALLEL_MIN_BATCH else _error_serial
+    kernel(_f64(sigma), _f64(target), out)
+    return out
+
+
+def rate_limited_demand(
+    error: np.ndarray,
+    gyro: np.ndarray,
+    tach: np.ndarray,
+    context: Context,
+    kp_s2: np.ndarray | float = KP_S2,
+    kd_s: np.ndarray | float = KD_S,
+    slew_rate_rad_s: float = SLEW_RATE_RAD_S,
+) -> np.ndarray:
+    """``law.rate_limited_demand`` ``(n, 3)`` N m; ``kp_s2``, ``kd_s`` scalars or ``(n, 1)``."""
+    wheels = context.wheels
+    assert wheels is not None
+    out = np.empty(error.shape)
+    kernel = _demand_parallel if error.shape[0] >= PARALLEL_MIN_BATCH else _demand_serial
+    kernel(
+        _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
+        float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes), _rows(kp_s2), _rows(kd_s),
+        float(slew_rate_rad_s), out,
+    )  # fmt: skip
+    return out
+
+
+def law_commands(
+    demand_nm: np.ndarray,
+    field_t: np.ndarray,
+    rod_gain: np.ndarray,
+    unload: np.ndarray,
+    gain: np.ndarray,
+    offset: np.ndarray,
+    friction_nm: np.ndarray,
+    disturbance_nm: np.ndarray,
+    tach: np.ndarray,
+    allocation_matrix: np.ndarray,
+    wheels: WheelKnowledge,
+    rods: RodKnowledge,
+    null_rate_per_s: float = NULL_RATE_PER_S,
+    null_target_rad_s: float = NULL_TARGET_RAD_S,
+) -> np.ndarray:
+    """Wheel and rod commands ``(n, m + 3)`` in [-1, 1]: ``MissionLaw.act`` after its hooks.
+
+    Args:
+        demand_nm: body torque demand ``(n, 3)`` (the ``demand`` hook).
+        field_t: the field the rods act on ``(n, 3)`` T, body frame (``field_body``).
+        rod_gain: believed rod gains ``(n, 3)``; unload: ``(n, 1)`` 1 where the rods unload.
+        gain, offset, friction_nm: believed wheels ``(n, m)`` (``wheel_model``).
+        disturbance_nm: torque fed forward ``(n, 3)``; tach: wheel speeds ``(n, m)`` rad/s.
+        allocation_matrix: ``allocation(gain)`` ``(n, m, 3)``.
+    """
+    m = len(wheels.spin_axes)
+    nu = np.full(m, 1.0 / np.sqrt(m))
+    along = tach @ nu - null_target_rad_s * np.sqrt(m)  # numpy's own sum: kept outside the kernel
+    out = np.empty((tach.shape[0], m + 3))
+    kernel = _commands_parallel if tach.shape[0] >= PARALLEL_MIN_BATCH else _commands_serial
+    kernel(
+        _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (tach.shape[0], 3))),
+        _f64(unload).reshape(-1), _f64(gain), _f64(np.broadcast_to(offset, gain.shape)), _f64(friction_nm),
+        _f64(np.broadcast_to(disturbance_nm, (tach.shape[0], 3))), _f64(tach), _f64(along),
+        _f64(allocation_matrix), float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes),
+        float(wheels.u_max_nm), float(rods.dipole_max_am2), UNLOAD_GAIN_PER_S,
+        -null_rate_per_s * wheels.spin_inertia_kgm2, float(nu[0]), ALLOCATE_DEAD_BELOW, out,
+    )  # fmt: skip
+    return out
+
+
+# --- per-episode code ------------------------------------------------------------------------
+
+
+@numba.njit(inline="always")
+def _error_episode(e, sigma, target, out):  # pragma: no cover - compiled
+    """``compose(-target, sigma)`` of one episode (``mrp.compose``'s operations, in order)."""
+    f0, f1, f2 = -target[e, 0], -target[e, 1], -target[e, 2]
+    s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+    a2 = f0 * f0 + f1 * f1 + f2 * f2
+    b2 = s0 * s0 + s1 * s1 + s2 * s2
+    ab = f0 * s0 + f1 * s1 + f2 * s2
+    c0, c1, c2 = s1 * f2 - s2 * f1, s2 * f0 - s0 * f2, s0 * f1 - s1 * f0
+    n0 = (1.0 - a2) * s0 + (1.0 - b2) * f0 - 2.0 * c0
+    n1 = (1.0 - a2) * s1 + (1.0 - b2) * f1 - 2.0 * c1
+    n2 = (1.0 - a2) * s2 + (1.0 - b2) * f2 - 2.0 * c2
+    den = 1.0 + a2 * b2 - 2.0 * ab
+    if den > 1e-12:
+        x0, x1, x2 = n0 / den, n1 / den, n2 / den
+    else:
+        x0, x1, x2 = 0.0, 0.0, 0.0
+    q2 = x0 * x0 + x1 * x1 + x2 * x2
+    if q2 > 1.0:
+        x0, x1, x2 = -x0 / q2, -x1 / q2, -x2 / q2
+    out[e, 0], out[e, 1], out[e, 2] = x0, x1, x2
+
+
+@numba.njit(inline="always")
+def _demand_episode(
+    e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out
+):  # pragma: no cover - compiled
+    """``law.rate_limited_demand`` of one episode."""
+    row = e if kp.shape[0] > 1 else 0
+    ratio = -(kp[row] / kd[row])
+    w0, w1, w2 = ratio * error[e, 0], ratio * error[e, 1], ratio * error[e, 2]
+    size = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    scale = min(1.0, slew / max(size, 1e-300))
+    w0, w1, w2 = w0 * scale, w1 * scale, w2 * scale
+    x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
+    g0, g1, g2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
+    m0 = inertia[0] * g0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
+    m1 = inertia[1] * g1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
+    m2 = inertia[2] * g2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    kd_row = kd[e if kd.shape[0] > 1 else 0]
+    out[e, 0] = -inertia[0] * kd_row * (g0 - w0) + (g1 * m2 - g2 * m1)
+    out[e, 1] = -inertia[1] * kd_row * (g1 - w1) + (g2 * m0 - g0 * m2)
+    out[e, 2] = -inertia[2] * kd_row * (g2 - w2) + (g0 * m1 - g1 * m0)
+
+
+@numba.njit(inline="always")
+def _clip(x, bound):  # pragma: no cover - compiled
+    """``np.clip(x, -bound, bound)``."""
+    if x < -bound:
+        return -bound
+    if x > bound:
+        return bound
+    return x
+
+
+@numba.njit(inline="always")
+def _rod(want, g, m_max):  # pragma: no cover - compiled
+    """``law.rod_commands`` of one rod: its command for the dipole ``want`` through its gain."""
+    working = abs(g) >= 0.1
+    command = want / (m_max * (g if working else 1.0))
+    return _clip(command if working else 0.0, 1.0)
+
+
+@numba.njit(inline="always")
+def _wheel(matrix_row, g, offset, friction, r0, r1, r2, u_max, dead_below, drain):  # pragma: no cover
+    """``allocate``'s clipped command of one wheel plus its null-space drain, clipped again."""
+    working = abs(g) > dead_below
+    command = einsum3(matrix_row[0], matrix_row[1], matrix_row[2], r0, r1, r2)
+    cancel = (offset + friction / u_max) / (g if working else 1.0)
+    command = _clip(command - (cancel if working else 0.0), 1.0)
+    return _clip(command + drain, 1.0)
+
+
+@numba.njit(inline="always")
+def _commands_episode(
+    e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
+    axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
+):  # fmt: skip  # pragma: no cover - compiled
+    """``MissionLaw.act`` after its hooks, one episode (four wheels, three rods)."""
+    x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
+    h0 = gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
+    h1 = gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
+    h2 = gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    b0, b1, b2 = field[e, 0], field[e, 1], field[e, 2]
+    # law.unloading_dipole, times the unloading switch, then law.rod_commands
+    bb = max(b0 * b0 + b1 * b1 + b2 * b2, 1e-18)
+    want0 = _clip(unload_gain * (h1 * b2 - h2 * b1) / bb, m_max) * unload[e]
+    want1 = _clip(unload_gain * (h2 * b0 - h0 * b2) / bb, m_max) * unload[e]
+    want2 = _clip(unload_gain * (h0 * b1 - h1 * b0) / bb, m_max) * unload[e]
+    g0, g1, g2 = rod_gain[e, 0], rod_gain[e, 1], rod_gain[e, 2]
+    out[e, 4], out[e, 5], out[e, 6] = _rod(want0, g0, m_max), _rod(want1, g1, m_max), _rod(want2, g2, m_max)
+    v0, v1, v2 = g0 * out[e, 4] * m_max, g1 * out[e, 5] * m_max, g2 * out[e, 6] * m_max
+    # the wheels' demand: the rods' torque m x B and the disturbance fed forward
+    l0 = demand[e, 0] - (v1 * b2 - v2 * b1) - disturbance[e, 0]
+    l1 = demand[e, 1] - (v2 * b0 - v0 * b2) - disturbance[e, 1]
+    l2 = demand[e, 2] - (v0 * b1 - v1 * b0) - disturbance[e, 2]
+    # v2's allocate: the working wheels also cancel a dead one's friction
+    w0, w1, w2, w3 = gain[e, 0], gain[e, 1], gain[e, 2], gain[e, 3]
+    u0 = 0.0 if abs(w0) > dead_below else friction[e, 0]
+    u1 = 0.0 if abs(w1) > dead_below else friction[e, 1]
+    u2 = 0.0 if abs(w2) > dead_below else friction[e, 2]
+    u3 = 0.0 if abs(w3) > dead_below else friction[e, 3]
+    r0 = -(l0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)) / u_max
+    r1 = -(l1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)) / u_max
+    r2 = -(l2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)) / u_max
+    # law.null_space_commands: none where a wheel is believed dead
+    all_working = abs(w0) > 1e-6 and abs(w1) > 1e-6 and abs(w2) > 1e-6 and abs(w3) > 1e-6
+    scale = null_scale * along[e] / u_max
+    for i in range(4):
+        g = gain[e, i]
+        drain = scale * nu / (g if abs(g) > 1e-6 else 1.0) if all_working else 0.0
+        out[e, i] = _wheel(
+            matrix[e, i], g, offset[e, i], friction[e, i], r0, r1, r2, u_max, dead_below, drain
+        )
+
+
+# --- serial and parallel loops ----------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _error_serial(sigma, target, out):  # pragma: no cover - compiled
+    for e in range(sigma.shape[0]):
+        _error_episode(e, sigma, target, out)
+
+
+@numba.njit(parallel=True, cache=True)
+def _error_parallel(sigma, target, out):  # pragma: no cover - compiled
+    for e in numba.prange(sigma.shape[0]):
+        _error_episode(e, sigma, target, out)
+
+
+@numba.njit(cache=True)
+def _demand_serial(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover - compiled
+    single_row = error.shape[0] == 1
+    for e in range(error.shape[0]):
+        _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
+
+
+@numba.njit(parallel=True, cache=True)
+def _demand_parallel(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover - compiled
+    single_row = error.shape[0] == 1
+    for e in numba.prange(error.shape[0]):
+        _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
+
+
+@numba.njit(cache=True)
+def _commands_serial(
+    demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js, axes,
+    u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
+):  # fmt: skip  # pragma: no cover - compiled
+    single_row = tach.shape[0] == 1
+    for e in range(tach.shape[0]):
+        _commands_episode(
+            e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
+            js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
+        )  # fmt: skip
+
+
+@numba.njit(parallel=True, cache=True)
+def _commands_parallel(
+    demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js, axes,
+    u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
+):  # fmt: skip  # pragma: no cover - compiled
+    single_row = tach.shape[0] == 1
+    for e in numba.prange(tach.shape[0]):
+        _commands_episode(
+            e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
+            js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
+        )  # fmt: skip
