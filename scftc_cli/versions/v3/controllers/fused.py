@@ -6,7 +6,7 @@ products through ``scftc_cli.sim.sums``, which sums them as numpy and OpenBLAS d
 gives the same bits either way (``tests/versions/v3/controllers/test_fused.py``). Numpy spends a
 v3 step of ``pd`` on some forty small array operations; here it is three calls.
 
-- ``attitude_error``: ``law.attitude_error`` (the MRP composition, shadow-switched).
+- ``attitude_error``: ``law.attitude_error`` (``scftc_cli.sim.mrp_fused.relative``).
 - ``rate_limited_demand``: ``law.rate_limited_demand``.
 - ``law_commands``: the rest of ``MissionLaw.act`` once its hooks have answered: the unloading
   dipole and the rod commands, the rods' torque fed forward, ``allocate`` through the given
@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
+from scftc_cli.sim.mrp_fused import relative
 from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
@@ -47,10 +48,7 @@ def _f64(a: np.ndarray) -> np.ndarray:
 
 def attitude_error(sigma: np.ndarray, target: np.ndarray) -> np.ndarray:
     """``law.attitude_error``: ``sigma_BR`` ``(n, 3)`` of the body relative to the target."""
-    out = np.empty(sigma.shape)
-    kernel = _error_parallel if sigma.shape[0] >= PARALLEL_MIN_BATCH else _error_serial
-    kernel(_f64(sigma), _f64(target), out)
-    return out
+    return relative(sigma, target)
 
 
 def rate_limited_demand(
@@ -118,29 +116,6 @@ def law_commands(
 
 
 # --- per-episode code ------------------------------------------------------------------------
-
-
-@numba.njit(inline="always")
-def _error_episode(e, sigma, target, out):  # pragma: no cover - compiled
-    """``compose(-target, sigma)`` of one episode (``mrp.compose``'s operations, in order)."""
-    f0, f1, f2 = -target[e, 0], -target[e, 1], -target[e, 2]
-    s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
-    a2 = f0 * f0 + f1 * f1 + f2 * f2
-    b2 = s0 * s0 + s1 * s1 + s2 * s2
-    ab = f0 * s0 + f1 * s1 + f2 * s2
-    c0, c1, c2 = s1 * f2 - s2 * f1, s2 * f0 - s0 * f2, s0 * f1 - s1 * f0
-    n0 = (1.0 - a2) * s0 + (1.0 - b2) * f0 - 2.0 * c0
-    n1 = (1.0 - a2) * s1 + (1.0 - b2) * f1 - 2.0 * c1
-    n2 = (1.0 - a2) * s2 + (1.0 - b2) * f2 - 2.0 * c2
-    den = 1.0 + a2 * b2 - 2.0 * ab
-    if den > 1e-12:
-        x0, x1, x2 = n0 / den, n1 / den, n2 / den
-    else:
-        x0, x1, x2 = 0.0, 0.0, 0.0
-    q2 = x0 * x0 + x1 * x1 + x2 * x2
-    if q2 > 1.0:
-        x0, x1, x2 = -x0 / q2, -x1 / q2, -x2 / q2
-    out[e, 0], out[e, 1], out[e, 2] = x0, x1, x2
 
 
 @numba.njit(inline="always")
@@ -237,18 +212,6 @@ def _commands_episode(
 
 
 # --- serial and parallel loops ----------------------------------------------------------------
-
-
-@numba.njit(cache=True)
-def _error_serial(sigma, target, out):  # pragma: no cover - compiled
-    for e in range(sigma.shape[0]):
-        _error_episode(e, sigma, target, out)
-
-
-@numba.njit(parallel=True, cache=True)
-def _error_parallel(sigma, target, out):  # pragma: no cover - compiled
-    for e in numba.prange(sigma.shape[0]):
-        _error_episode(e, sigma, target, out)
 
 
 @numba.njit(cache=True)

@@ -15,6 +15,7 @@ from typing import Any, Self
 import numpy as np
 
 from scftc_cli.sim.mrp import compose, norm2
+from scftc_cli.sim.mrp_fused import relative
 from scftc_cli.versions.v3.sim.dynamics import V2_WHEELS, V3Constants, V3Plant
 from scftc_cli.versions.v3.sim.environment import EnvironmentConstants
 from scftc_cli.versions.v3.sim.fast import FastV3Plant
@@ -78,12 +79,22 @@ class MissionMixin:
     def step(self, k: int, command: np.ndarray) -> np.ndarray:
         """Advance step ``k``; return ``|sigma_BR|^2`` ``(n,)`` of the error to step ``k``'s target."""
         super().step(k, command)  # type: ignore[misc]
-        error = target_error(self.sigma, self.targets[:, window_of(k)])  # type: ignore[attr-defined]
+        error = self.error_to(self.sigma, self.targets[:, window_of(k)])  # type: ignore[attr-defined]
         return norm2(error)
+
+    @staticmethod
+    def error_to(sigma: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``target_error`` (numpy here: the reference plant's)."""
+        return target_error(sigma, target)
 
 
 class MissionFastPlant(MissionMixin, FastV3Plant):
-    """The default backend: the fused kernel (``fast.py``)."""
+    """The default backend: the fused kernel (``fast.py``), the error compiled too (the same bits)."""
+
+    @staticmethod
+    def error_to(sigma: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``target_error``, compiled (``scftc_cli.sim.mrp_fused.relative``)."""
+        return relative(sigma, target)
 
 
 class MissionReferencePlant(MissionMixin, V3Plant):
