@@ -1,10 +1,12 @@
 """Wall-clock speed of ``scftc-v3``'s plant: ``python benchmarks/v3_throughput.py [--n 10000] [--steps 200]``.
 
 Times env-steps per second (episodes x steps / wall seconds) of the fused kernel alone
-(``MissionFastPlant.step``, the target error included) and of the kernel plus the sensors
-(``observe`` then ``step``, as a rollout calls them), on pinned ``train`` episodes of every class
-tiled to ``--n``, after a warm-up step (numba compiles or loads its cache first). The load average
-is printed beside each figure: on a shared machine other processes move the numbers.
+(``MissionFastPlant.step``, the target error included), of the kernel plus the sensors
+(``observe`` then ``step``, as a rollout calls them), and of the whole loop with ``pd`` flying:
+its compiled law (``controllers/fused.py``) and, in the same run, its numpy definition
+(``MissionLaw.act_reference``), with their ratio. Pinned ``train`` episodes of every class tiled
+to ``--n``, after a warm-up step (numba compiles or loads its cache first). The load average is
+printed beside each figure: on a shared machine other processes move the numbers.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import time
 import numpy as np
 
 from scftc_cli.sim.testbed import testbed
+from scftc_cli.versions.v3.controllers.analytic import PD
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
 
 
@@ -57,6 +60,19 @@ def main() -> None:
         plant.step(k, command)
     wall = time.perf_counter() - wall
     print(f"kernel + sensors: {batch.n * args.steps / wall / 1e6:.2f} M env-steps/s (load {_load()})")
+
+    rates = {}
+    for law in ("compiled", "numpy"):
+        plant, sensors, controller = bed.plant(batch), bed.sensors(batch), PD()
+        controller.reset(batch.n, bed.context(batch, privileged=False))
+        act = controller.act if law == "compiled" else controller.act_reference
+        plant.step(0, act(sensors.observe(0, plant)))
+        wall = time.perf_counter()
+        for k in range(1, args.steps + 1):
+            plant.step(k, act(sensors.observe(k, plant)))
+        rates[law] = batch.n * args.steps / (time.perf_counter() - wall)
+        print(f"loop, pd {law + ' law:':14} {rates[law] / 1e6:.2f} M env-steps/s (load {_load()})")
+    print(f"compiled / numpy law: x{rates['compiled'] / rates['numpy']:.2f}")
 
 
 if __name__ == "__main__":
