@@ -1,7 +1,7 @@
-"""The compiled mission law (``controllers/fused.py``) gives the same bits as its numpy definition
-(``law.py`` and ``MissionLaw.act_reference``): piece by piece on random rows, and over whole
-rollouts of every v3 controller that flies the law, one episode alone (numpy's single-row sums)
-and a batch."""
+"""The compiled mission law (``controllers/fused.py``) and ``fdir``'s compiled least squares give
+the same bits as their numpy definitions (``law.py``, ``MissionLaw.act_reference``,
+``fdir.rls_update_reference``): piece by piece on random rows, and over whole rollouts of every v3
+controller that flies the law, one episode alone (numpy's single-row sums) and a batch."""
 
 from __future__ import annotations
 
@@ -62,6 +62,23 @@ def test_each_piece_is_its_numpy_definition_bit_for_bit(n):
         np.testing.assert_array_equal(got, np.concatenate([wheel_cmd, rod_cmd], axis=1))
 
 
+@pytest.mark.parametrize("lead", [(6, 4), (9,)])
+def test_fdirs_compiled_least_squares_step_is_its_numpy_definition(lead):
+    d = 2 if len(lead) == 2 else 3  # the wheels' (gain, offset) and the rods' three gains
+    rng = np.random.default_rng(d)
+    theta = rng.normal(size=(*lead, d))
+    root = rng.normal(size=(*lead, d, d))
+    p = root @ np.swapaxes(root, -1, -2) * rng.uniform(0.1, 1e3, (*lead, 1, 1))
+    phi = rng.normal(size=(*lead, 3, d))[..., 1, :]  # a strided view, as fdir's regressors
+    y, mask = rng.normal(size=lead), rng.random(lead) < 0.7
+    for forgetting, trace_max in ((0.99, 2e4), (0.998 ** (1 / 3), 30.0), (0.9, 1.0)):
+        got = fdir.rls_update(theta, p, phi, y, forgetting, mask, trace_max)
+        want = fdir.rls_update_reference(theta, p, phi, y, forgetting, mask, trace_max)
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(got[1], p) and np.array_equal(got[1][~mask], p[~mask])
+
+
 CONTROLLERS = {
     "pd": lambda: analytic.PD(),
     "teacher": lambda: analytic.Teacher(),
@@ -75,6 +92,7 @@ CONTROLLERS = {
 def _numpy_law(monkeypatch):
     """Every controller's law back on ``law.py``'s numpy functions."""
     monkeypatch.setattr(analytic.MissionLaw, "act", analytic.MissionLaw.act_reference)
+    monkeypatch.setattr(fdir, "rls_update", fdir.rls_update_reference)
     for module in (fused, pid, rls):
         monkeypatch.setattr(module, "rate_limited_demand", law.rate_limited_demand)
 
