@@ -308,6 +308,68 @@ def law_command(
     )
 
 
+@numba.njit(inline="always")
+def _gram_inverse(effective, mmt, inverse):  # pragma: no cover - compiled
+    """``(E E' + eps I)^-1`` into ``inverse`` (3, 3) for ``E = G diag(g)`` ``effective`` (3, m), in
+    closed form (the adjugate), ``eps = 1e-12 tr(E E')``, or 1e-12 for an all-zero ``E`` (every
+    wheel estimated dead: the allocation is zero), as ``law.pseudo_inverse``; ``mmt`` is scratch.
+    ``pinv(G diag(g)) = E' (E E' + eps I)^-1``."""
+    m = effective.shape[1]
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for i in range(m):
+                acc += effective[r, i] * effective[c, i]
+            mmt[r, c] = acc
+    trace = mmt[0, 0] + mmt[1, 1] + mmt[2, 2]
+    eps = 1e-12 * (trace if trace > 0.0 else 1.0)
+    for r in range(3):
+        mmt[r, r] += eps
+    a00, a01, a02 = mmt[0, 0], mmt[0, 1], mmt[0, 2]
+    a10, a11, a12 = mmt[1, 0], mmt[1, 1], mmt[1, 2]
+    a20, a21, a22 = mmt[2, 0], mmt[2, 1], mmt[2, 2]
+    c00, c01, c02 = a11 * a22 - a12 * a21, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11
+    c10, c11, c12 = a12 * a20 - a10 * a22, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12
+    c20, c21, c22 = a10 * a21 - a11 * a20, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10
+    det = a00 * c00 + a01 * c10 + a02 * c20
+    inverse[0, 0], inverse[0, 1], inverse[0, 2] = c00 / det, c01 / det, c02 / det
+    inverse[1, 0], inverse[1, 1], inverse[1, 2] = c10 / det, c11 / det, c12 / det
+    inverse[2, 0], inverse[2, 1], inverse[2, 2] = c20 / det, c21 / det, c22 / det
+
+
+@numba.njit(cache=True)
+def _closed_form_allocation(gain, axes, out):  # pragma: no cover - compiled
+    n, m = gain.shape
+    effective = np.empty((3, m))
+    mmt = np.empty((3, 3))
+    inverse = np.empty((3, 3))
+    for e in range(n):
+        for i in range(m):
+            for r in range(3):
+                effective[r, i] = axes[i, r] * gain[e, i]
+        _gram_inverse(effective, mmt, inverse)
+        for i in range(m):
+            for r in range(3):
+                row = 0.0
+                for c in range(3):
+                    row += effective[c, i] * inverse[c, r]
+                out[e, i, r] = row
+
+
+def closed_form_allocation(gain: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:
+    """``law.allocation``'s ``pinv(G diag(g))`` ``(n, m, 3)`` for gains ``(n, m)``, through the
+    closed-form 3x3 inverse ``law_command`` uses (``_gram_inverse``) instead of LAPACK's: one
+    compiled pass, equal to ``law.allocation`` to rounding (not bit for bit) with at most one wheel
+    dead; the allocation of the estimating ports whose kernel defines them."""
+    out = np.empty((*gain.shape, 3))
+    _closed_form_allocation(
+        np.ascontiguousarray(gain, dtype=np.float64),
+        np.ascontiguousarray(wheels.spin_axes, dtype=np.float64),
+        out,
+    )
+    return out
+
+
 @numba.njit(cache=True)
 def _law_command(  # pragma: no cover - compiled
     demand, g_hat, b_hat, kappa_hat, tach, axes, u_max, viscous, linear, since, amp, steps, hold, dead_below
@@ -334,28 +396,7 @@ def _law_command(  # pragma: no cover - compiled
                 friction[i] = -(np.sign(w) * coulomb + viscous * w)
             for r in range(3):
                 effective[r, i] = axes[i, r] * g[i]
-        # pinv(G diag(g)) = E' (E E' + eps I)^-1, eps = 1e-12 tr(E E'), or 1e-12 for an all-zero E
-        # (every wheel estimated dead: the allocation is zero), as law.pseudo_inverse
-        for r in range(3):
-            for c in range(3):
-                acc = 0.0
-                for i in range(m):
-                    acc += effective[r, i] * effective[c, i]
-                mmt[r, c] = acc
-        trace = mmt[0, 0] + mmt[1, 1] + mmt[2, 2]
-        eps = 1e-12 * (trace if trace > 0.0 else 1.0)
-        for r in range(3):
-            mmt[r, r] += eps
-        a00, a01, a02 = mmt[0, 0], mmt[0, 1], mmt[0, 2]
-        a10, a11, a12 = mmt[1, 0], mmt[1, 1], mmt[1, 2]
-        a20, a21, a22 = mmt[2, 0], mmt[2, 1], mmt[2, 2]
-        c00, c01, c02 = a11 * a22 - a12 * a21, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11
-        c10, c11, c12 = a12 * a20 - a10 * a22, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12
-        c20, c21, c22 = a10 * a21 - a11 * a20, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10
-        det = a00 * c00 + a01 * c10 + a02 * c20
-        inverse[0, 0], inverse[0, 1], inverse[0, 2] = c00 / det, c01 / det, c02 / det
-        inverse[1, 0], inverse[1, 1], inverse[1, 2] = c10 / det, c11 / det, c12 / det
-        inverse[2, 0], inverse[2, 1], inverse[2, 2] = c20 / det, c21 / det, c22 / det
+        _gram_inverse(effective, mmt, inverse)
         # target = -(L + G_dead' fr_dead) / u_max: the working wheels also cancel a dead one's friction
         for r in range(3):
             dead_friction = 0.0

@@ -67,6 +67,10 @@ class MissionLaw(Controller):
         ones = np.ones((self.n, self.m))
         return ones, np.zeros((self.n, self.m)), friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
 
+    def allocation(self, gain: np.ndarray) -> np.ndarray:
+        """``pinv(G diag(gain))`` ``(n, m, 3)`` for believed gains ``(n, m)`` (``law.allocation``)."""
+        return allocation(gain, self.wheels)
+
     def rod_gain(self) -> np.ndarray:
         return np.ones((self.n, 3))
 
@@ -106,7 +110,7 @@ class MissionLaw(Controller):
         rod_gain = self.rod_gain()
         unload = self.unloading(time_left)
         gain, offset, friction = self.wheel_model(tach)
-        matrix = self.nominal if np.all(gain == 1.0) else allocation(gain, self.wheels)
+        matrix = self.nominal if np.all(gain == 1.0) else self.allocation(gain)
         command = fused.law_commands(
             demand, field, rod_gain, unload, gain, offset, friction, self.disturbance_nm(sigma), tach, matrix,
             self.wheels, self.rods, self.null_rate_per_s, self.null_target_rad_s,
@@ -127,7 +131,7 @@ class MissionLaw(Controller):
         rods = rod_commands(wanted * self.unloading(time_left), rod_gain, self.rods)
         rod_torque = cross(rod_gain * rods * self.rods.dipole_max_am2, field)
         gain, offset, friction = self.wheel_model(tach)
-        matrix = self.nominal if np.all(gain == 1.0) else allocation(gain, self.wheels)
+        matrix = self.nominal if np.all(gain == 1.0) else self.allocation(gain)
         wheels = allocate(
             demand - rod_torque - self.disturbance_nm(sigma), matrix, gain, friction, offset, self.wheels
         )

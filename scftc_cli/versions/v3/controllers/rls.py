@@ -10,9 +10,10 @@ when a fault starts, comes back or creeps past the threshold after the latch clo
 hub, not between hub and wheel), so v2's estimator carries over unchanged.
 
 What the mission law gets from it: the estimated gains (a wheel estimated dead, ``|g_hat| < 0.1``,
-dropped from the allocation), offsets and Coulomb levels (``wheel_model``), and the rate-limited
-PD at the port's gains. After the law, v2's square-wave dither along the estimated null space for
-``dither_steps`` steps after every (re)opening, and on a wheel estimated dead. The rods unload as
+dropped from the allocation, whose pseudo-inverse is v2's closed form in one compiled pass),
+offsets and Coulomb levels (``wheel_model``), and the rate-limited PD at the port's gains. After
+the law, v2's square-wave dither along the estimated null space for ``dither_steps`` steps after
+every (re)opening, and on a wheel estimated dead. The rods unload as
 in ``pd`` (this port estimates no rod), and the null-space drain runs through the estimated gains.
 It reports no diagnosis (``health`` is not defined: it never alarms).
 
@@ -28,6 +29,7 @@ from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.estimators import (
     WheelTorqueMeter,
+    closed_form_allocation,
     effective_gain,
     null_dither,
 )
@@ -67,6 +69,10 @@ class RLSDob(Tuned, MissionLaw):
         gain = effective_gain(g_hat)
         friction = friction_nm(tach, kappa_hat * self.wheels.u_max_nm, self.wheels)
         return gain, np.where(gain == 0.0, 0.0, b_hat), friction
+
+    def allocation(self, gain: np.ndarray) -> np.ndarray:
+        """v2's ``rls_dob`` allocation: the closed-form pseudo-inverse of its compiled law."""
+        return closed_form_allocation(gain, self.wheels)
 
     def demand(self, error: np.ndarray, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
         return rate_limited_demand(error, gyro, tach, self.context, self.params.kp_s2, self.params.kd_s)

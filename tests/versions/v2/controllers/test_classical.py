@@ -258,6 +258,20 @@ def test_the_fused_law_command_is_its_numpy_definition():
     np.testing.assert_allclose(fused, reference, rtol=0, atol=1e-12)
 
 
+def test_the_closed_form_allocation_is_laws_pseudo_inverse_to_rounding():
+    """``closed_form_allocation`` (the law kernel's adjugate inverse, one compiled pass) against
+    ``law.allocation`` (LAPACK): to rounding with up to one wheel dead, exactly zero with all dead."""
+    wheels = public_context(1).wheels
+    rng = np.random.default_rng(11)
+    n = 400
+    gain = rng.uniform(0.3, 2.0, (n, 4)) * np.where(rng.random((n, 4)) < 0.3, -1.0, 1.0)
+    gain[np.arange(n) % 3 == 0, rng.integers(0, 4, n)[np.arange(n) % 3 == 0]] = 0.0  # one dead
+    gain[-1] = 0.0
+    fused, reference = estimators.closed_form_allocation(gain, wheels), law.allocation(gain, wheels)
+    np.testing.assert_allclose(fused, reference, rtol=0, atol=1e-12)
+    assert np.all(fused[-1] == 0.0) and np.abs(fused).max() > 0.1
+
+
 def test_the_sign_vote_flips_a_reversed_wheel_and_no_dead_one():
     episodes = BED.draw("train", "loss", n_faults=2, n_seeds=2)
     gain = np.array([-1.0, 0.0, 1.0, 1.0])
