@@ -143,3 +143,19 @@ def test_the_compiled_law_is_the_numpy_law_bit_for_bit(
         command = compiled.command(obs)
         np.testing.assert_array_equal(command, reference.command(obs), err_msg=f"step {k}")
         plant.step(k, command)
+
+
+def test_the_compiled_vote_is_its_numpy_definition_bit_for_bit():
+    """Every count of valid heads (the mean of fewer than three, zero of none), ties, signed zeros."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    aligned = rng.normal(0.0, 0.3, (n, 3, 3))
+    aligned[::7, 1] = aligned[::7, 0]  # ties
+    aligned[::11, 2, 0] = -0.0
+    aligned[::13] = np.where(aligned[::13] < 0, -0.0, 0.0)
+    valid = rng.random((n, 3)) < 0.6
+    got, count = law.vote(aligned, valid)
+    want, count_want = law.vote_reference(aligned, valid)
+    np.testing.assert_array_equal(count, count_want)
+    assert set(np.unique(count)) == {0, 1, 2, 3}
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the bits, signed zeros included
