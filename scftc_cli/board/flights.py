@@ -221,8 +221,8 @@ def fly_submission(
 
 
 def score_submission(sub: Submission, scoring: Scoring, draws: Draws, deadline: float | None = None) -> Flown:
-    """Per-draw cell results of a submission: one sandbox per draw (on a cluster: one per draw on
-    each worker that flies its chunks, kept between them; ``distributed/refs.py``)."""
+    """Per-draw cell results of a submission: one sandbox per draw (on a cluster: one per chunk,
+    on the workers)."""
     if scoring.runner is not None:
         ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
         return _score(_built_on_workers, ref, scoring, draws, sub.manifest.name)

@@ -4,12 +4,6 @@ A controller object does not travel (it may hold a sandboxed process, compiled k
 files); a reference does: a built-in's name (with the bytes of a ``--params`` artifact, if any),
 or a submitted file's bytes, which the worker flies in its own sandbox (or, for a local
 development run, in its own process).
-
-A worker keeps the sandbox of a submission's draw for its next chunks of that draw (``KEPT``
-sandboxes at most, the least recently used closed first), as the serial run flies every cell of a
-draw in one sandbox: starting one per chunk cost the cluster about a fifth more CPU than the
-serial run. Sandboxes of different draws (the public cells, a sealed draw) are never shared.
-``close_kept`` closes them; the cluster runs it on every worker before it shuts down.
 """
 
 from __future__ import annotations
@@ -18,7 +12,6 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from scftc_cli.protocol import Controller
 from scftc_cli.submission.limits import SandboxLimits
@@ -57,23 +50,7 @@ class SubmissionRef:
     limits: SandboxLimits = SandboxLimits()
     local: bool = False
 
-    def factory(self, keep: bytes | None = None) -> tuple[Callable[[], Controller], Callable[[], None]]:
-        """A controller factory and a clean-up function; with ``keep`` (the draw's salt) the
-        sandbox stays open for the next chunk of that draw (``close_kept`` ends it)."""
-        if keep is not None and not self.local:
-            key = (self, keep)
-            kept = _kept.pop(key, None)
-            if kept is not None and kept.sandbox.running():
-                _kept[key] = kept  # now the most recently used
-                return (lambda: kept), lambda: None
-            if kept is not None:
-                kept.sandbox.close()
-            make, _ = self.factory()
-            proxy = make()
-            while len(_kept) >= KEPT:
-                _kept.pop(next(iter(_kept))).sandbox.close()
-            _kept[key] = proxy
-            return (lambda: proxy), lambda: None
+    def factory(self) -> tuple[Callable[[], Controller], Callable[[], None]]:
         from scftc_cli.submission.manifest import load_submission
 
         folder = tempfile.TemporaryDirectory(prefix="scftc-submission-")
@@ -95,16 +72,3 @@ class SubmissionRef:
 
 
 ControllerRef = BuiltinRef | SubmissionRef
-
-KEPT = 2
-"""Sandboxes a worker keeps open between chunks."""
-
-_kept: dict[tuple[SubmissionRef, bytes], Any] = {}  # (ref, salt) -> its SandboxedController
-
-
-def close_kept() -> int:
-    """Close every sandbox this process keeps; how many there were (run on each worker)."""
-    count = len(_kept)
-    while _kept:
-        _kept.popitem()[1].sandbox.close()
-    return count

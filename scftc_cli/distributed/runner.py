@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from scftc_cli.distributed.refs import ControllerRef, SubmissionRef, close_kept
+from scftc_cli.distributed.refs import ControllerRef
 from scftc_cli.errors import ScftcError, UsageError
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes
@@ -66,27 +66,12 @@ def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
         task.start,
         task.stop,
     )
-    ref = task.ref
-    if isinstance(ref, SubmissionRef) and _on_worker():
-        make, cleanup = ref.factory(task.salt)  # the draw's sandbox serves its next chunks
-    else:
-        make, cleanup = ref.factory()
+    make, cleanup = task.ref.factory()
     try:
         flown = rollout(make(), episodes, backend=task.backend)
         return episode_outcomes(flown, bed.spec.gates, episodes.fault_index, bed.truth(episodes))
     finally:
         cleanup()
-
-
-def _on_worker() -> bool:
-    """Whether this runs as a task on a Dask worker (which keeps sandboxes between chunks)."""
-    try:
-        from distributed import get_worker
-
-        get_worker()
-    except (ImportError, ValueError):
-        return False
-    return True
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:
@@ -120,16 +105,6 @@ class Runner:
         for future in self._ahead.values():
             future.cancel()
         self._ahead.clear()
-
-    def close(self) -> None:
-        """End of the job: ``discard``, and every worker closes the sandboxes it kept. Best effort:
-        a worker that cannot be reached takes its sandboxes along when it exits (the kernel's
-        parent-death signal), and a failure here must not hide the job's own error."""
-        self.discard()
-        try:
-            self.client.run(close_kept)
-        except Exception:  # best effort: see the docstring
-            pass
 
     def map(
         self,
@@ -206,7 +181,7 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
             try:
                 yield runner
             finally:
-                runner.close()
+                runner.discard()
         return
     try:
         client = Client(address, timeout="10s")
@@ -219,5 +194,5 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
     try:
         yield runner
     finally:
-        runner.close()
+        runner.discard()
         client.close()

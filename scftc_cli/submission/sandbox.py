@@ -232,10 +232,6 @@ class Sandbox:
                 if not chunk:
                     return None
 
-    def running(self) -> bool:
-        """Whether the sandboxed process is still there to answer (started, not exited or killed)."""
-        return self._proc is not None and self._to_child is not None and self._reap(0.0) is None
-
     def close(self) -> None:
         """Stop the sandbox (politely, then by force) and wait until every process in it is gone."""
         try:

@@ -169,53 +169,6 @@ def test_eval_with_workers_prints_the_serial_cells():
     assert json.loads(result.stdout)["cells"] == serial
 
 
-def _kept_sandboxes() -> dict[int, int]:
-    """Runs on a worker: ``{bubblewrap pid: its sandbox's id}`` of the sandboxes it keeps."""
-    from scftc_cli.distributed import refs
-
-    return {id(c.sandbox): c.sandbox._proc.pid for c in refs._kept.values()}
-
-
-def _children(pid: int) -> list[int]:
-    tasks = Path(f"/proc/{pid}/task")
-    found: list[int] = []
-    for task in tasks.iterdir() if tasks.exists() else []:
-        children = (task / "children").read_text().split()
-        found += [int(c) for c in children]
-    return found
-
-
-@pytest.mark.slow
-def test_a_submission_on_the_cluster_scores_as_in_process_keeps_one_sandbox_per_draw_and_leaves_none(
-    dask_runner: Runner,
-):
-    from dataclasses import replace
-
-    from scftc_cli.board.draws import PUBLIC
-    from scftc_cli.board.flights import score_submission
-    from scftc_cli.distributed.refs import KEPT, close_kept
-    from scftc_cli.submission.manifest import load_submission
-
-    sub = load_submission(Path(__file__).parents[2] / "submissions" / "example_pd_plus" / "pd_plus.py")
-    small = Scoring(V1, n_faults=2, n_seeds=1)
-    draws = {"public": PUBLIC, "sealed": b"a sealed draw"}
-    serial = score_submission(sub, small, draws)
-    on_cluster = score_submission(sub, replace(small, runner=dask_runner), draws)
-    for draw in draws:
-        assert serial[draw] == on_cluster[draw]
-    first = dask_runner.client.run(_kept_sandboxes)
-    assert 1 <= sum(map(len, first.values())) and all(len(k) <= KEPT for k in first.values())
-    score_submission(sub, replace(small, runner=dask_runner), draws)
-    again = dask_runner.client.run(_kept_sandboxes)
-    assert sum(set(a.values()) & set(first[w].values()) != set() for w, a in again.items()) >= 1  # reused
-    workers = dask_runner.client.run(os.getpid)
-    kept = [pid for k in again.values() for pid in k.values()]
-    assert set(kept) <= {c for w in workers.values() for c in _children(w)}
-    dask_runner.close()  # what the cluster does before it shuts down
-    assert dask_runner.client.run(close_kept) == {w: 0 for w in workers}
-    assert not set(kept) & {c for w in workers.values() for c in _children(w)}  # nothing left running
-
-
 @pytest.mark.slow
 def test_verify_on_the_cluster_passes_and_catches_an_edit(dask_runner: Runner, tmp_path: Path, monkeypatch):
     small = {n: registry()[n] for n in ("pd", "teacher")}
