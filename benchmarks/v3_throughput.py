@@ -18,6 +18,8 @@ import time
 import numpy as np
 
 from scftc_cli.sim.testbed import testbed
+from scftc_cli.versions.v3.controllers import fused
+from scftc_cli.versions.v3.controllers import law as numpy_law
 from scftc_cli.versions.v3.controllers.analytic import PD
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
 
@@ -32,6 +34,9 @@ def episodes(n: int) -> AgileEpisodes:
     parts = [bed.draw("train", c, n_faults=8, n_seeds=2) for c in bed.spec.fault_classes]
     batch = AgileEpisodes.concat(parts)
     return batch.subset(np.arange(n) % batch.n)
+
+
+compiled_demand = fused.rate_limited_demand
 
 
 def main() -> None:
@@ -66,12 +71,15 @@ def main() -> None:
         plant, sensors, controller = bed.plant(batch), bed.sensors(batch), PD()
         controller.reset(batch.n, bed.context(batch, privileged=False))
         act = controller.act if law == "compiled" else controller.act_reference
+        # the numpy run's demand hook on law.py's numpy function too
+        fused.rate_limited_demand = compiled_demand if law == "compiled" else numpy_law.rate_limited_demand
         plant.step(0, act(sensors.observe(0, plant)))
         wall = time.perf_counter()
         for k in range(1, args.steps + 1):
             plant.step(k, act(sensors.observe(k, plant)))
         rates[law] = batch.n * args.steps / (time.perf_counter() - wall)
         print(f"loop, pd {law + ' law:':14} {rates[law] / 1e6:.2f} M env-steps/s (load {_load()})")
+    fused.rate_limited_demand = compiled_demand
     print(f"compiled / numpy law: x{rates['compiled'] / rates['numpy']:.2f}")
 
 

@@ -18,6 +18,8 @@ PARALLEL_MIN_BATCH = 5_000
 def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """``compose(-reference, sigma)`` ``(n, 3)``: ``C = C(sigma) C(reference)'``."""
     sigma = np.ascontiguousarray(sigma, dtype=np.float64)
+    if sigma.ndim != 2 or sigma.shape[1] != 3 or np.shape(reference) != sigma.shape:
+        raise ValueError(f"relative takes two (n, 3) arrays, not {sigma.shape} and {np.shape(reference)}")
     out = np.empty(sigma.shape)
     kernel = _relative_parallel if sigma.shape[0] >= PARALLEL_MIN_BATCH else _relative_serial
     kernel(sigma, np.ascontiguousarray(reference, dtype=np.float64), out)

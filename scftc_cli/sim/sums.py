@@ -12,6 +12,10 @@ numpy without AVX-512), measured on millions of random rows (``tests/sim/test_su
 - ``np.einsum("nij,nj->ni", M, v)`` over three terms is ``(p0 + p2) + p1`` (numpy's two-lane
   loop: the third product joins the first lane, then the lanes are added).
 
+Both libraries start their sums from +0.0, so where every product is -0.0 they return +0.0, not
+the -0.0 the bare sum gives: the functions below add their sum to +0.0 (which changes nothing
+else; numba folds no ``0.0 + x``, which IEEE 754 does not allow).
+
 ``fma`` is LLVM's ``llvm.fma.f64``: the hardware instruction where the CPU has one, a correctly
 rounded library call where not, so the same bits either way.
 """
@@ -39,11 +43,11 @@ def gemm4(x0, x1, x2, x3, b0, b1, b2, b3, single_row):  # pragma: no cover
     """One output of ``x (n, 4) @ B (4, m)``: row ``x0..x3``, column ``b0..b3``; ``single_row``
     is ``n == 1`` (numpy's pairwise loop instead of OpenBLAS's multiply-add chain)."""
     if single_row:
-        return (x0 * b0 + x1 * b1) + (x2 * b2 + x3 * b3)
-    return fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
+        return 0.0 + ((x0 * b0 + x1 * b1) + (x2 * b2 + x3 * b3))
+    return 0.0 + fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
 
 
 @numba.njit(inline="always")
 def einsum3(m0, m1, m2, v0, v1, v2):  # pragma: no cover - compiled
     """One output of ``np.einsum("nij,nj->ni", M, v)`` over three terms: ``(p0 + p2) + p1``."""
-    return (m0 * v0 + m2 * v2) + m1 * v1
+    return 0.0 + ((m0 * v0 + m2 * v2) + m1 * v1)

@@ -359,6 +359,11 @@ def example_trajectories(
             except Exception as err:
                 raise StudyError(f"controller `{entry.name}` failed on {fault_class}: {err}") from err
             fault = episode.fault  # type: ignore[attr-defined]
+            # the hub's f: with the fault on v1 and v2, with the episode (a mass property) on v3
+            inertia_scale = getattr(fault, "inertia_scale", None)
+            if inertia_scale is None:
+                inertia_scale = episode.inertia_scale  # type: ignore[attr-defined]
+            assert result.error_deg is not None
             out.append(
                 Trajectory(
                     controller=entry.name,
@@ -366,8 +371,11 @@ def example_trajectories(
                     fault_class=fault_class,
                     gain=fault.gain[0],
                     bias=fault.bias[0],
-                    inertia_scale=float(fault.inertia_scale[0]),
-                    error_deg=principal_angle_deg(result.sigma[0]),
+                    inertia_scale=float(inertia_scale[0]),
+                    # the start (every version's first target is the origin), then the error the
+                    # plant scored after each step: to the current window's target where there are
+                    # several (on v1 and v2 the same bits as the angle of the attitude itself)
+                    error_deg=np.concatenate([principal_angle_deg(result.sigma[0, :1]), result.error_deg[0]]),
                     dt_s=spec.dt_s,
                     family=entry.family,
                 )

@@ -64,6 +64,17 @@ def test_the_allocation_einsum_is_numpy_bit_for_bit(n: int):
         np.testing.assert_array_equal(_einsum(m, v), np.einsum("nij,nj->ni", m, v))
 
 
+@pytest.mark.parametrize("n", [1, 2, 500])
+def test_products_that_are_all_negative_zero_sum_to_positive_zero_as_in_numpy(n: int):
+    x = np.tile([-1.0, 2.0, -3.0, 4.0], (n, 1))
+    b = np.array([[0.0, 1.0, 1.0], [-0.0, 1.0, 1.0], [0.0, 1.0, 1.0], [-0.0, 1.0, 1.0]])
+    assert np.all(np.signbit(x[:, :, None] * b[None])[:, :, 0])  # every product of column 0 is -0.0
+    np.testing.assert_array_equal(np.signbit(_matmul(x, b)), np.signbit(x @ b))
+    m, v = np.tile([[-1.0, 2.0, -3.0]], (n, 4, 1)), np.tile([0.0, -0.0, 0.0], (n, 1))
+    np.testing.assert_array_equal(np.signbit(_einsum(m, v)), np.signbit(np.einsum("nij,nj->ni", m, v)))
+    assert not np.signbit(x @ b).any()
+
+
 def test_a_plain_sum_would_not_do():
     """The orders matter: summed left to right, a large share of the rows differ in the last bit."""
     rng = np.random.default_rng(0)

@@ -88,10 +88,6 @@ class MissionLaw(Controller):
         """The observation the law flies on (the raw one unless a subclass knows better)."""
         return obs
 
-    def null_space(self, tach: np.ndarray, gain: np.ndarray) -> np.ndarray:
-        """``(n, m)`` wheel commands along the null space (``law.null_space_commands``)."""
-        return null_space_commands(tach, gain, self.context, self.null_rate_per_s, self.null_target_rad_s)
-
     def demand(self, error: np.ndarray, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
         """The body torque demand ``(n, 3)`` N m for the error to the target ``(n, 3)`` MRP (the rate-
         limited PD with its gyroscopic feed-forward unless a subclass adds to it)."""
@@ -120,7 +116,9 @@ class MissionLaw(Controller):
         return command
 
     def act_reference(self, obs: np.ndarray) -> np.ndarray:
-        """``act`` in numpy, through ``law.py`` (its readable definition; the same bits)."""
+        """``act`` through ``law.py``'s numpy functions, its readable definition (the same bits).
+        The ``demand`` hook is the subclass's: the compiled ``fused.rate_limited_demand`` unless
+        put back on ``law.rate_limited_demand``, as the tests and the benchmark do."""
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
         error = attitude_error(sigma, target)
@@ -135,7 +133,8 @@ class MissionLaw(Controller):
         wheels = allocate(
             demand - rod_torque - self.disturbance_nm(sigma), matrix, gain, friction, offset, self.wheels
         )
-        wheels = np.clip(wheels + self.null_space(tach, gain), -1.0, 1.0)
+        drain = null_space_commands(tach, gain, self.context, self.null_rate_per_s, self.null_target_rad_s)
+        wheels = np.clip(wheels + drain, -1.0, 1.0)
         self.commanded(error, wheels)
         self.k += 1
         return np.concatenate([wheels, rods], axis=1)

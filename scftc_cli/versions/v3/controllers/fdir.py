@@ -122,8 +122,9 @@ def rls_update(theta, p, phi, y, forgetting, mask, trace_max):
 
 @numba.njit(inline="always")
 def _sum(v0, v1, v2, d):  # pragma: no cover - compiled
-    """``np.einsum``'s sum of ``d`` products (2: in order; 3: ``(p0 + p2) + p1``, sim.sums)."""
-    return v0 + v1 if d == 2 else (v0 + v2) + v1
+    """``np.einsum``'s sum of ``d`` products (2: in order; 3: ``(p0 + p2) + p1``, sim.sums), from
+    +0.0 as numpy's (all products -0.0 sum to +0.0)."""
+    return 0.0 + (v0 + v1 if d == 2 else (v0 + v2) + v1)
 
 
 @numba.njit(cache=True)

@@ -89,7 +89,8 @@ def law_commands(
     null_rate_per_s: float = NULL_RATE_PER_S,
     null_target_rad_s: float = NULL_TARGET_RAD_S,
 ) -> np.ndarray:
-    """Wheel and rod commands ``(n, m + 3)`` in [-1, 1]: ``MissionLaw.act`` after its hooks.
+    """Wheel and rod commands ``(n, m + 3)`` in [-1, 1]: ``MissionLaw.act`` after its hooks. Four
+    wheels, finite inputs (the kernel's ``min`` and ``max`` do not carry NaN as numpy's do).
 
     Args:
         demand_nm: body torque demand ``(n, 3)`` (the ``demand`` hook).
@@ -100,6 +101,8 @@ def law_commands(
         allocation_matrix: ``allocation(gain)`` ``(n, m, 3)``.
     """
     m = len(wheels.spin_axes)
+    if m != 4 or tach.shape != gain.shape or gain.shape[1] != 4:
+        raise ValueError(f"the compiled law flies 4 wheels: {m} axes, tach {tach.shape}, gain {gain.shape}")
     nu = np.full(m, 1.0 / np.sqrt(m))
     along = tach @ nu - null_target_rad_s * np.sqrt(m)  # numpy's own sum: kept outside the kernel
     out = np.empty((tach.shape[0], m + 3))

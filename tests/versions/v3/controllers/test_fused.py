@@ -10,7 +10,7 @@ import pytest
 
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.versions.v2.controllers.law import allocate, allocation, friction_nm
+from scftc_cli.versions.v2.controllers.law import allocate, allocation, friction_nm, vote_reference
 from scftc_cli.versions.v2.controllers.pid import PIDParams
 from scftc_cli.versions.v2.controllers.rls import RLSParams
 from scftc_cli.versions.v3.controllers import analytic, fdir, fused, law, pid, rls
@@ -93,6 +93,7 @@ def _numpy_law(monkeypatch):
     """Every controller's law back on ``law.py``'s numpy functions."""
     monkeypatch.setattr(analytic.MissionLaw, "act", analytic.MissionLaw.act_reference)
     monkeypatch.setattr(fdir, "rls_update", fdir.rls_update_reference)
+    monkeypatch.setattr(fdir, "vote", vote_reference)
     for module in (fused, pid, rls):
         monkeypatch.setattr(module, "rate_limited_demand", law.rate_limited_demand)
 
@@ -103,11 +104,12 @@ def _numpy_law(monkeypatch):
 def test_a_rollout_through_the_compiled_law_is_the_numpy_rollout(name, monkeypatch):
     episodes = BED.draw("train", "compound", n_faults=3, n_seeds=1)
     for batch in (episodes, episodes.subset(np.array([1]))):  # a batch, and one episode alone
-        compiled = rollout(CONTROLLERS[name](), batch)
+        compiled = rollout(CONTROLLERS[name](), batch, record=True)
         with monkeypatch.context() as patch:
             _numpy_law(patch)
-            reference = rollout(CONTROLLERS[name](), batch)
+            reference = rollout(CONTROLLERS[name](), batch, record=True)
         assert batch.n == 1 or not np.array_equal(reference.final_error_deg, reference.final_error_deg[::-1])
-        np.testing.assert_array_equal(compiled.window_dwell_max_deg, reference.window_dwell_max_deg)
-        np.testing.assert_array_equal(compiled.final_error_deg, reference.final_error_deg)
+        assert compiled.commands is not None and reference.commands is not None
+        np.testing.assert_array_equal(compiled.commands, reference.commands)  # every command, every step
+        np.testing.assert_array_equal(compiled.error_deg, reference.error_deg)
     assert V3.steps == 2400  # whole episodes: every window, the onset and the bursts were flown
