@@ -267,3 +267,19 @@ def test_progress_total_is_the_work_done() -> None:
     run_study(SPEC, 1, 1, progress=progress)
     assert progress.steps == planned_steps(SPEC)
     assert any(d.startswith("trajectory: ") for d in progress.descriptions)
+
+
+def test_example_trajectories_on_v3_plot_the_error_to_each_windows_target() -> None:
+    """scftc-v3's hub scale is a mass property of the episode and its error is to the current
+    window's target: the trajectory is the error the plant scored, from the first target (the
+    origin) on; a slew's new target shows as a jump at the window's start."""
+    from scftc_cli.spec import get_spec
+
+    spec = get_spec("scftc-v3")
+    narrow = spec.model_copy(update={"classes": tuple(c for c in spec.classes if c.name == "nominal")})
+    pd = registry("scftc-v3")["pd"]
+    (trajectory,) = study_run.example_trajectories([pd], narrow)
+    assert trajectory.error_deg.shape == (spec.steps + 1,) and 0.5 < trajectory.inertia_scale < 2.0
+    window = spec.plant.window_steps
+    assert trajectory.error_deg[window + 1] > 10 * trajectory.error_deg[window]  # the slew to target 2
+    assert trajectory.error_deg[window] < 0.2 and trajectory.error_deg[-1] < 0.2  # settled on both
