@@ -168,10 +168,13 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
     if workers is not None:
         # Dask gives each worker process one BLAS/OpenMP thread, but numba sizes its thread pool
         # by the machine: two workers on two cores would run four threads of the parallel kernels,
-        # which spin-wait on each other. Each gets its share of the cores instead.
+        # which spin-wait on each other. Each gets its share of the cores instead, set in the
+        # worker after it is spawned ("environ"): the nanny writes "pre-spawn-environ" into this
+        # process's own environment and leaves it there, and numba here then refuses to compile
+        # ("Cannot set NUMBA_NUM_THREADS to a different value once the threads have been launched").
         threads = max(1, (os.cpu_count() or 1) // workers)
         with (
-            dask.config.set({"distributed.nanny.pre-spawn-environ.NUMBA_NUM_THREADS": threads}),
+            dask.config.set({"distributed.nanny.environ.NUMBA_NUM_THREADS": threads}),
             LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
             ) as local,

@@ -36,11 +36,29 @@ runner_cli = CliRunner()
 CELLS = select_cells(V1, "test", None, None) + [Cell("test", "sign", "bias_0.2")]
 
 
+BEFORE_CLUSTER = os.environ.get("NUMBA_NUM_THREADS")
+
+
 @pytest.fixture(scope="module")
 def dask_runner():
     with cluster(workers=2) as runner:
         assert runner is not None
         yield runner
+
+
+def _numba_threads() -> int:
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def test_each_worker_gets_its_share_of_the_cores_and_this_process_keeps_its_environment(dask_runner):
+    """The workers' numba pools are sized to their share of the cores, and the parent's
+    environment is untouched: a NUMBA_NUM_THREADS left here would make numba refuse to compile
+    in this process once its threads run."""
+    assert os.environ.get("NUMBA_NUM_THREADS") == BEFORE_CLUSTER
+    share = max(1, (os.cpu_count() or 1) // 2)
+    assert set(dask_runner.client.run(_numba_threads).values()) == {share}
 
 
 def _serial(name: str, n_faults: int, n_seeds: int):
