@@ -126,7 +126,8 @@ def _demand_episode(
     e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out
 ):  # pragma: no cover - compiled
     """``law.rate_limited_demand`` of one episode."""
-    row = e if kp.shape[0] > 1 else 0
+    # e - e, not 0: prange's index may be unsigned, and numba unifies uint64 with int64 as float64
+    row = e if kp.shape[0] > 1 else e - e
     ratio = -(kp[row] / kd[row])
     w0, w1, w2 = ratio * error[e, 0], ratio * error[e, 1], ratio * error[e, 2]
     size = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
@@ -137,7 +138,7 @@ def _demand_episode(
     m0 = inertia[0] * g0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
     m1 = inertia[1] * g1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
     m2 = inertia[2] * g2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
-    kd_row = kd[e if kd.shape[0] > 1 else 0]
+    kd_row = kd[e if kd.shape[0] > 1 else e - e]
     out[e, 0] = -inertia[0] * kd_row * (g0 - w0) + (g1 * m2 - g2 * m1)
     out[e, 1] = -inertia[1] * kd_row * (g1 - w1) + (g2 * m0 - g0 * m2)
     out[e, 2] = -inertia[2] * kd_row * (g2 - w2) + (g0 * m1 - g1 * m0)

@@ -23,7 +23,7 @@ def _context():
     return BED.context(BED.draw("train", "gain", n_faults=1, n_seeds=1), privileged=False)
 
 
-@pytest.mark.parametrize("n", [1, 7])
+@pytest.mark.parametrize("n", [1, 7, fused.PARALLEL_MIN_BATCH + 1])  # the serial and the threaded passes
 def test_each_piece_is_its_numpy_definition_bit_for_bit(n):
     rng = np.random.default_rng(n)
     context = _context()
