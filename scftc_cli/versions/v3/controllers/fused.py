@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
-from scftc_cli.sim.mrp_fused import relative
+from scftc_cli.sim.mrp_fused import PARALLEL_MIN_BATCH, relative  # one threshold for both passes
 from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
@@ -31,10 +31,6 @@ from scftc_cli.versions.v3.controllers.law import (
 
 ALLOCATE_DEAD_BELOW = 1e-6
 """``allocate``'s default: a believed gain at or below it is a dead wheel."""
-
-PARALLEL_MIN_BATCH = 5_000
-"""From this many episodes on the passes run on numba's threads (as the plant); both kernels run
-the same per-episode code: the same bits."""
 
 
 def _rows(value: np.ndarray | float) -> np.ndarray:
