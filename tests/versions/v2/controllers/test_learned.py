@@ -154,7 +154,7 @@ def _torch_student(name: str):  # type: ignore[no-untyped-def]
 @pytest.mark.parametrize("name", STUDENTS)
 def test_student_kernel_matches_torch_on_recorded_rollouts(name: str) -> None:
     torch = pytest.importorskip("torch")
-    from scftc_cli.versions.v2.training.rma import split_segments
+    from scftc_cli.training.dagger import split_segments
 
     net, config = load_student(name)
     model = _torch_student(name)

@@ -1,0 +1,85 @@
+"""Trainers of ``rma_student`` and ``rma_dob`` on ``scftc-v3``: v2's DAgger (``training/dagger.py``)
+on v3's train split, flying v3's mission law (``controllers/rma.py``).
+
+Episodes are fresh train draws of the benchmark's own sampler (``envs.sample_episodes``: an
+actuator class uniform over ``CLASSES``, then the pinned cells' distribution keyed by random
+bytes, never a pinned episode). The teacher's gain, the regression target, is the true wheel
+effectiveness in force at each step: healthy before the onset, the fault's gains from it on
+(what ``teacher`` allocates through). The classes:
+
+- ``rma_student`` (fits ``y = g a``, no offset model): the classes whose faults are gains alone,
+  ``nominal``, ``sign``, ``gain``, ``loss``, ``double`` and ``rod`` (a dead wheel with its rod
+  fault), as v2 trains it on its gain classes;
+- ``rma_dob`` (bias-invariant, with the offset and friction observer): all eleven actuator
+  classes, the friction ones (``friction``, ``intermittent``, ``incipient``) and the offset ones
+  (``gain_bias``, ``compound``) included.
+
+The budget is v2's (iterations, episodes, gradient steps); each v3 episode is six times a v2 one.
+Each gradient step's minibatch is cut after its last step on which the network ran (the loss is
+the same: ``DaggerPlan.trim``), which keeps the 2400-step sequences affordable.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scftc_cli.baselines.student import StudentNet
+from scftc_cli.protocol import Context
+from scftc_cli.training import TrainReport, TrainRequest
+from scftc_cli.training.dagger import DaggerPlan, Recording, train_dagger
+from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
+from scftc_cli.versions.v2.training.rma import BUDGETS, student_config
+from scftc_cli.versions.v3.controllers.rma import StudentMission
+from scftc_cli.versions.v3.envs import sample_episodes
+from scftc_cli.versions.v3.sim.testbed import public_context
+from scftc_cli.versions.v3.spec import V3
+
+GAIN_CLASSES = ("nominal", "sign", "gain", "loss", "double", "rod")
+CLASSES: dict[str, tuple[str, ...]] = {
+    "rma_student": GAIN_CLASSES,
+    "rma_dob": tuple(V3.fault_classes),
+}
+WHEELS = 4
+
+
+class _DaggerMission(Recording, StudentMission):
+    """Training-only (privileged): the student in the loop, except on the episodes of
+    ``teacher_mask`` where the true gains are allocated through; records what the trainer needs."""
+
+    privileged = True
+
+    def __init__(self, net: StudentNet, config: StudentConfig, teacher_mask: np.ndarray) -> None:
+        super().__init__(net=net, config=config)
+        self.teacher_mask = teacher_mask[:, None]
+
+    def reset(self, n: int, context: Context) -> None:
+        if context.fault is None:
+            raise ValueError("the DAgger collector needs the true fault")
+        episodes = context.fault.episodes
+        self.true_gain, self.onset = np.asarray(episodes.fault.gain), np.asarray(episodes.fault.onset_step)
+        super().reset(n, public_context(episodes))  # the student itself never sees the fault
+        self.start_recording()
+
+    def gain_hat(self, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
+        true_gain = np.where((self.k >= self.onset)[:, None], self.true_gain, 1.0)
+        gain = self.estimator.observe(gyro, tach, (self.teacher_mask, true_gain))
+        self.record(self.estimator, true_gain)
+        return gain
+
+
+def train_student(request: TrainRequest) -> TrainReport:
+    """DAgger-train v3's student of ``request.controller`` (``rma_student`` or ``rma_dob``)."""
+    name, budget = request.controller, BUDGETS[request.budget]
+    classes = CLASSES[name]
+    plan = DaggerPlan(
+        spec=V3,
+        wheels=WHEELS,
+        classes=classes,
+        sample=lambda rng, n: sample_episodes(rng, n, "train", classes),
+        collector=_DaggerMission,
+        deployed=lambda net, config: StudentMission(net=net, config=config),
+        layout=LAYOUT,
+        n_features=N_FEATURES,
+        trim=True,
+    )
+    return train_dagger(request, budget, student_config(name, budget), plan)
