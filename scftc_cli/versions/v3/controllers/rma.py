@@ -15,7 +15,7 @@ What the mission law gets from it: the latched gains (the weakest wheel allocate
 ``dead_below``, every other kept that far from zero, ``student_effective_gain``) and, for
 ``rma_dob``, the observer's offsets and Coulomb levels (``wheel_model``). The rods unload as in
 ``pd`` (nothing is estimated of them), and the null-space drain runs through the estimated gains.
-It reports no diagnosis (``health`` is not defined: it never alarms).
+It reports no diagnosis (``health`` returns ``None``: scored as never alarming).
 
 Weights: ``weights/rma_student.npz`` and ``weights/rma_dob.npz`` of this version with their
 ``.yaml`` (provenance); ``scftc train --benchmark scftc-v3 --controller rma_student|rma_dob``
