@@ -29,7 +29,17 @@ import numpy as np
 from scftc_cli import __version__
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
 from scftc_cli.board.ranking import Pooled, Ranked, Ranking, pooled_profile_of, pooled_settled, rank_board
-from scftc_cli.board.render import by_class, flag_sentence, history_parts, kind_text, pooled_text, rank_text
+from scftc_cli.board.render import (
+    DIAGNOSIS_HEADERS,
+    by_class,
+    diagnosis_cells,
+    flag_sentence,
+    flag_text,
+    history_parts,
+    kind_text,
+    pooled_text,
+    rank_text,
+)
 from scftc_cli.board.svg import Line, profile_chart, style_of, swatch
 from scftc_cli.records import GateStat
 from scftc_cli.spec import BenchmarkSpec, get_spec
@@ -425,12 +435,8 @@ def _ranked_table(rows: list[Ranked], spec: BenchmarkSpec, ranking: Ranking, *, 
             *(_heat_cell(by_class(e.sealed, c).settled, f"{c}, sealed") for c in spec.fault_classes),
         ]
         if not oracle:
-            flag = ", ".join(r.flagged)
-            link = (
-                f'<a class="flag" href="#{version}-flagged">public above sealed on {esc(flag)}</a>'
-                if flag
-                else ""
-            )
+            flag = flag_text(r)
+            link = f'<a class="flag" href="#{version}-flagged">{esc(flag)}</a>' if flag else ""
             cells.append(f'<td data-sort="{esc(flag)}">{link}</td>')
         cells.append('<td><button class="more" type="button" aria-expanded="false">details</button></td>')
         tr_class = ' class="tied"' if r.tied else ""
@@ -465,6 +471,37 @@ def _sensor_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
         bodies.append(f'<tbody><tr><td colspan="{len(headers)}">(no entries yet)</td></tr></tbody>')
     return (
         f'<table class="sortable" id="{esc(spec.version)}-sensors-table">{_heads(headers)}'
+        f"{''.join(bodies)}</table>"
+    )
+
+
+def _diagnosis_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
+    """What each sealed entry's fault detection said (versions that score a diagnosis), pooled over
+    its sealed cells, beside its ranked settled rate; empty for a version without one."""
+    if spec.diagnosis is None:
+        return ""
+    headers = [
+        ("controller", "", ""),
+        ("sealed settled", "ranked classes", ""),
+        *((h, "", "") for h in DIAGNOSIS_HEADERS),
+        ("over budget", f"{100 * spec.diagnosis.false_alarm_budget:g} % of healthy episodes", ""),
+    ]
+    bodies = []
+    for r in [*ranking.deployable, *ranking.upper_bounds]:
+        if r.diagnosis is None:
+            continue
+        oracle = ' <span class="kind">oracle</span>' if r.entry.privileged else ""
+        cells = [
+            f'<td data-sort="{esc(r.entry.name)}"><span class="name">{esc(r.entry.name)}</span>{oracle}</td>',
+            f'<td data-sort="{r.sealed.rate:.6f}">{100 * r.sealed.rate:.1f}</td>',
+            *(f"<td>{esc(text)}</td>" for text in diagnosis_cells(r.diagnosis)),
+            f"<td>{'<strong>yes</strong>' if r.over_budget else ''}</td>",
+        ]
+        bodies.append(f'<tbody><tr data-name="{esc(r.entry.name)}">{"".join(cells)}</tr></tbody>')
+    if not bodies:
+        bodies.append(f'<tbody><tr><td colspan="{len(headers)}">(no entries yet)</td></tr></tbody>')
+    return (
+        f'<table class="sortable" id="{esc(spec.version)}-diagnosis-table">{_heads(headers)}'
         f"{''.join(bodies)}</table>"
     )
 
@@ -514,9 +551,9 @@ def _failed_list(ranking: Ranking) -> str:
 def _flagged_list(ranking: Ranking) -> str:
     items = "".join(
         f'<li data-name="{esc(r.entry.name)}"><span class="name">{esc(r.entry.name)}</span>: '
-        f"{esc(flag_sentence(r.flagged))}</li>"
+        f"{esc(flag_sentence(r.flagged, r))}</li>"
         for r in ranking.deployable
-        if r.flagged
+        if r.flagged or r.over_budget
     )
     return f'<ul class="flagged">{items}</ul>' if items else ""
 
@@ -659,6 +696,12 @@ def board_section(board: Leaderboard) -> str:
             "profiles",
             f"Performance profiles (sealed draw, pooled over {', '.join(ranking.ranked_classes)})",
             _profiles(ranking, spec),
+        ),
+        (
+            "diagnosis",
+            "Diagnosis (sealed draw, pooled over every sealed cell; a controller that reports none never "
+            "alarms and never detects)",
+            _diagnosis_table(ranking, spec),
         ),
         (
             "sensors",

@@ -46,9 +46,22 @@ MAX_SOURCE_PATH_CHARS = 200
 MAX_REASON_CHARS = 500
 
 
-def ranking_rule(ranked_classes: tuple[str, ...], episodes_per_cell: int) -> str:
-    """The ranking rule, in words (stored with every board and printed above every table)."""
+def ranking_rule(
+    ranked_classes: tuple[str, ...], episodes_per_cell: int, false_alarm_budget: float | None = None
+) -> str:
+    """The ranking rule, in words (stored with every board and printed above every table); a
+    version that scores a diagnosis states its false-alarm budget."""
     pooled = len(ranked_classes) * episodes_per_cell
+    budget = (
+        ""
+        if false_alarm_budget is None
+        else (
+            f". An entry that raises a false alarm (an alarm in healthy flight: a nominal episode, or "
+            f"before the onset) in more than {100 * false_alarm_budget:g} % of the healthy episodes of its "
+            "sealed cells is flagged as over the false-alarm budget; it still ranks on its settled rate, "
+            "and its diagnosis (false alarms, detection, isolation, delay) is shown beside it"
+        )
+    )
     return (
         f"sealed deployable entries ranked by their settled rate on the sealed draw, pooled over the ranked "
         f"classes ({', '.join(ranked_classes)}; K settled of {pooled} episodes, which is exactly the mean of "
@@ -59,7 +72,7 @@ def ranking_rule(ranked_classes: tuple[str, ...], episodes_per_cell: int) -> str
         "that an exact two-sample permutation test exchanging whole faults between the two entries within "
         f"each class does not separate from it (p >= {TIE_ALPHA}); entries of a group share its rank. "
         "Privileged oracles are shown apart as upper bounds, never ranked; pending entries are listed with "
-        "their public score until their round is sealed"
+        "their public score until their round is sealed" + budget
     )
 
 
@@ -375,7 +388,12 @@ class Leaderboard(BaseModel):
 def empty_board(benchmark: str) -> Leaderboard:
     spec = get_spec(benchmark)
     return Leaderboard(
-        benchmark_version=benchmark, ranking=ranking_rule(spec.ranked_classes, spec.episodes_per_cell)
+        benchmark_version=benchmark,
+        ranking=ranking_rule(
+            spec.ranked_classes,
+            spec.episodes_per_cell,
+            spec.diagnosis.false_alarm_budget if spec.diagnosis is not None else None,
+        ),
     )
 
 

@@ -16,6 +16,7 @@ pairs entries episode by episode and is compared with ``scftc compare``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -66,6 +67,64 @@ def pooled_settled(cells: list[CellResult], ranked_classes: tuple[str, ...]) -> 
     return Pooled(sum(c.settled.k for c in chosen), sum(c.n for c in chosen), strata, seeds)
 
 
+@dataclass(frozen=True)
+class PooledDiagnosis:
+    """What an entry's fault detection said, pooled over cells (counts, as ``DiagnosisStats``).
+
+    ``false_alarm_rate`` is the quantity the version's false-alarm budget bounds: the fraction of
+    healthy episodes (nominal ones, or flight before the onset) in which the entry raised an
+    alarm. Its interval is Wilson's over episodes (each healthy stretch one trial)."""
+
+    faulted: int
+    detected: int
+    isolated: int
+    severity_right: int
+    delay_total_s: float
+    healthy_episodes: int
+    false_alarm_episodes: int
+    healthy_hours: float
+    false_alarms: int
+
+    @property
+    def false_alarm_rate(self) -> float:
+        return self.false_alarm_episodes / self.healthy_episodes if self.healthy_episodes else 0.0
+
+    @property
+    def false_alarm_interval(self) -> tuple[float, float]:
+        return wilson_interval(self.false_alarm_episodes, self.healthy_episodes)
+
+    @property
+    def false_alarms_per_hour(self) -> float:
+        return self.false_alarms / self.healthy_hours if self.healthy_hours else 0.0
+
+    @property
+    def mean_delay_s(self) -> float | None:
+        return self.delay_total_s / self.detected if self.detected else None
+
+    def share(self, count: int) -> float:
+        """``count`` as a fraction of the faulted episodes."""
+        return count / self.faulted if self.faulted else 0.0
+
+
+def pooled_diagnosis(cells: list[CellResult]) -> PooledDiagnosis | None:
+    """The diagnosis of every cell of ``cells`` that scores one (actuator and sensor cells alike:
+    every healthy stretch can raise a false alarm), pooled; ``None`` if none does."""
+    stats = [c.diagnosis for c in cells if c.diagnosis is not None]
+    if not stats:
+        return None
+    return PooledDiagnosis(
+        faulted=sum(s.faulted for s in stats),
+        detected=sum(s.detected for s in stats),
+        isolated=sum(s.isolated for s in stats),
+        severity_right=sum(s.severity_right for s in stats),
+        delay_total_s=sum((s.delay_mean_s or 0.0) * s.detected for s in stats),
+        healthy_episodes=sum(s.healthy_episodes for s in stats),
+        false_alarm_episodes=sum(s.false_alarm_episodes for s in stats),
+        healthy_hours=sum(s.healthy_hours for s in stats),
+        false_alarms=sum(s.false_alarms for s in stats),
+    )
+
+
 def pooled_profile_of(cells: list[CellResult], ranked_classes: Sequence[str]) -> np.ndarray:
     """``(40,)`` the pooled performance profile of an entry's cells over ``ranked_classes`` (their
     actuator cells, as ``pooled_settled`` pools them), from their stored profile counts: the
@@ -99,6 +158,9 @@ class Ranked:
         flagged: cells (and ``mean`` for the ranked quantity) where the public draw settles more
             than the sealed one beyond chance: a two-sample test over faults (the two draws are
             independent) with Holm's adjustment over the entry's cells, at ``FLAG_ALPHA``.
+        diagnosis: its sealed cells' diagnosis, pooled (versions that score one).
+        over_budget: raised a false alarm in more than the version's budget of its sealed healthy
+            episodes: flagged, still ranked on its settled rate.
     """
 
     entry: Entry
@@ -107,6 +169,8 @@ class Ranked:
     rank: int | None = None
     tied: bool = False
     flagged: list[str] = field(default_factory=list)
+    diagnosis: PooledDiagnosis | None = None
+    over_budget: bool = False
 
 
 def flagged_cells(entry: Entry, ranked_classes: tuple[str, ...]) -> list[str]:
@@ -148,14 +212,19 @@ class Ranking:
 
 def rank_board(board: Leaderboard) -> Ranking:
     """Deployable entries in tie groups on their sealed draw; oracles apart, sorted alike."""
-    classes = get_spec(board.benchmark_version).ranked_classes
+    spec = get_spec(board.benchmark_version)
+    classes = spec.ranked_classes
+    budget = spec.diagnosis.false_alarm_budget if spec.diagnosis is not None else None
 
     def ranked(e: Entry) -> Ranked:
+        diagnosis = pooled_diagnosis(e.sealed) if budget is not None else None
         return Ranked(
             e,
             pooled_settled(e.sealed, classes),
             pooled_settled(e.public, classes),
             flagged=flagged_cells(e, classes),
+            diagnosis=diagnosis,
+            over_budget=diagnosis is not None and budget is not None and diagnosis.false_alarm_rate > budget,
         )
 
     def order(rows: list[Ranked]) -> list[Ranked]:
@@ -172,7 +241,7 @@ def rank_board(board: Leaderboard) -> Ranking:
     out = []
     rank = 1
     for group in groups:
-        out += [Ranked(r.entry, r.sealed, r.public, rank, len(group) > 1, r.flagged) for r in group]
+        out += [dataclasses.replace(r, rank=rank, tied=len(group) > 1) for r in group]
         rank += len(group)
     oracles = order([ranked(e) for e in sealed if e.privileged])
     pending = sorted(

@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
-from scftc_cli.board.ranking import FLAG_ALPHA, Pooled, Ranked, Ranking, pooled_settled, rank_board
-from scftc_cli.records import CellResult
+from scftc_cli.board.ranking import (
+    FLAG_ALPHA,
+    Pooled,
+    PooledDiagnosis,
+    Ranked,
+    Ranking,
+    pooled_settled,
+    rank_board,
+)
+from scftc_cli.records import CellResult, DiagnosisStats
 from scftc_cli.render import markdown_lines, pct
 from scftc_cli.spec import GATES, get_spec
 
@@ -33,6 +42,65 @@ def pooled_text(p: Pooled, by_fault: bool = True) -> str:
 def rank_text(r: Ranked) -> str:
     """``3`` or ``3=`` (the ``=`` marks a tie group of several entries)."""
     return f"{r.rank}{'=' if r.tied else ''}"
+
+
+def flag_text(r: Ranked) -> str:
+    """The flag column: public above sealed on some cells, and/or over the false-alarm budget."""
+    parts = ["public above sealed on " + ", ".join(r.flagged)] if r.flagged else []
+    parts += ["over the false-alarm budget"] if r.over_budget else []
+    return "; ".join(parts)
+
+
+DIAGNOSIS_HEADERS = (
+    "false-alarm episodes / healthy (%)",
+    "false alarms per hour",
+    "detected (% of faulted)",
+    "isolated (%)",
+    "right severity (%)",
+    "mean delay (s)",
+)
+
+
+def diagnosis_cells(d: PooledDiagnosis) -> list[str]:
+    """One entry's ``DIAGNOSIS_HEADERS`` cells."""
+    low, high = d.false_alarm_interval
+    delay = d.mean_delay_s
+    return [
+        f"{d.false_alarm_episodes} / {d.healthy_episodes}: {100 * d.false_alarm_rate:.2f} "
+        f"[{100 * low:.2f}, {100 * high:.2f}]",
+        f"{d.false_alarms_per_hour:.3f}",
+        f"{d.detected} / {d.faulted}: {100 * d.share(d.detected):.1f}",
+        f"{100 * d.share(d.isolated):.1f}",
+        f"{100 * d.share(d.severity_right):.1f}",
+        "-" if delay is None else f"{delay:.0f}",
+    ]
+
+
+def diagnosis_lines(ranking: Ranking, budget: float) -> list[str]:
+    """The diagnosis table (versions that score one): every sealed entry, pooled over its sealed
+    cells, beside its ranked settled rate."""
+    out = [
+        "",
+        f"## Diagnosis (sealed draw, pooled over every sealed cell; false-alarm budget {100 * budget:g} % "
+        "of healthy episodes)",
+        "",
+        "A controller that reports no diagnosis never alarms and never detects. Intervals: Wilson 95 % over "
+        "healthy episodes. Detection, isolation (the last report names exactly the faulted units) and the "
+        "right severity are shares of the faulted episodes; the delay is from the onset to the first alarm.",
+        "",
+    ]
+    headers = ["controller", "sealed settled (ranked)", *DIAGNOSIS_HEADERS, "over budget"]
+    rows = [
+        [
+            f"`{r.entry.name}`" + (" (oracle)" if r.entry.privileged else ""),
+            f"{100 * r.sealed.rate:.1f}",
+            *diagnosis_cells(r.diagnosis),
+            "**yes**" if r.over_budget else "",
+        ]
+        for r in [*ranking.deployable, *ranking.upper_bounds]
+        if r.diagnosis is not None
+    ]
+    return out + (markdown_lines(headers, rows) if rows else ["(no entries yet)"])
 
 
 def kind_text(e: Entry) -> str:
@@ -73,7 +141,7 @@ def board_markdown(board: Leaderboard) -> str:
             f"**{pooled_text(r.sealed)}**",
             pooled_text(r.public),
             *(pct(by_class(r.entry.sealed, c).settled) for c in spec.fault_classes),
-            ("public above sealed on " + ", ".join(r.flagged)) if r.flagged else "",
+            flag_text(r),
         ]
         for r in ranking.deployable
     ]
@@ -101,11 +169,13 @@ def board_markdown(board: Leaderboard) -> str:
         label = f"`{r.entry.name}`" + (" (oracle)" if r.entry.privileged else "")
         rows.append([label, *(pct(sensors[s].settled) for s in spec.sensor_faults)])
     out += markdown_lines(headers, rows) if rows else ["(no entries yet)"]
+    if spec.diagnosis is not None:
+        out += diagnosis_lines(ranking, spec.diagnosis.false_alarm_budget)
     out += _pending_and_failed(board, ranking, spec.fault_classes)
-    flagged = [r for r in ranking.deployable if r.flagged]
+    flagged = [r for r in ranking.deployable if r.flagged or r.over_budget]
     if flagged:
         out += ["", "## Flagged", ""]
-        out += [f"- `{r.entry.name}`: {flag_sentence(r.flagged)}" for r in flagged]
+        out += [f"- `{r.entry.name}`: {flag_sentence(r.flagged, r)}" for r in flagged]
     out += ["", "## Rounds", ""]
     out += (
         markdown_lines(
@@ -131,9 +201,20 @@ def board_markdown(board: Leaderboard) -> str:
     return "\n".join(out) + "\n"
 
 
-def flag_sentence(cells: list[str]) -> str:
-    """What a flag on ``cells`` means, in plain text (both boards print it after the entry's name)."""
-    return (
+def flag_sentence(cells: list[str], r: Ranked | None = None) -> str:
+    """What a flag on ``cells`` (and, for ``r`` over the false-alarm budget, that one) means, in
+    plain text (both boards print it after the entry's name)."""
+    budget = ""
+    if r is not None and r.over_budget and r.diagnosis is not None:
+        d = r.diagnosis
+        budget = (
+            f"raises a false alarm in {d.false_alarm_episodes} of its {d.healthy_episodes} sealed healthy "
+            f"episodes ({100 * d.false_alarm_rate:.2f} %), over the version's false-alarm budget; it still "
+            "ranks on its settled rate."
+        )
+    if not cells:
+        return budget
+    return (budget + " " if budget else "") + (
         f"settles more on the public draw than on its sealed one on {', '.join(cells)}, beyond chance (an "
         "exact two-sample test over faults, the two draws being independent, Holm-adjusted over the "
         f"entry's cells, at {FLAG_ALPHA}). The public episodes are pinned and open, so a controller can "
@@ -213,6 +294,20 @@ def _ranked_json(r: Ranked) -> dict:
         "sealed_settled": _pooled_json(r.sealed),
         "public_settled": {"k": r.public.k, "n": r.public.n, "rate": r.public.rate},
         "flagged": r.flagged,
+        **(
+            {}
+            if r.diagnosis is None
+            else {
+                "diagnosis": {
+                    **dataclasses.asdict(r.diagnosis),
+                    "false_alarm_rate": r.diagnosis.false_alarm_rate,
+                    "false_alarm_interval": list(r.diagnosis.false_alarm_interval),
+                    "false_alarms_per_hour": r.diagnosis.false_alarms_per_hour,
+                    "mean_delay_s": r.diagnosis.mean_delay_s,
+                },
+                "over_false_alarm_budget": r.over_budget,
+            }
+        ),
     }
 
 
@@ -242,9 +337,11 @@ def board_csv(board: Leaderboard) -> str:
     """Long format, in rank order (deployable entries, then oracles): one row per entry, draw and
     cell, every gate's k, rate and interval."""
     ranking = rank_board(board)
+    diagnosed = get_spec(board.benchmark_version).diagnosis is not None
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     gate_cols = [f"{g}_{x}" for g in GATES for x in ("k", "rate", "ci_low", "ci_high")]
+    diagnosis_cols = list(DiagnosisStats.model_fields) if diagnosed else []
     writer.writerow(
         [
             "rank",
@@ -261,6 +358,7 @@ def board_csv(board: Leaderboard) -> str:
             *gate_cols,
         ]
         + ["final_error_median_deg", "final_error_mean_deg", "flagged"]
+        + [f"diagnosis_{c}" for c in diagnosis_cols]
     )
     for r in [*ranking.deployable, *ranking.upper_bounds]:
         e = r.entry
@@ -273,6 +371,7 @@ def board_csv(board: Leaderboard) -> str:
                     + [v for s in stats for v in (s.k, s.rate, s.ci_low, s.ci_high)]
                     + [c.final_error_deg.median, c.final_error_deg.mean]
                     + [c.label in r.flagged]
+                    + [getattr(c.diagnosis, name, "") for name in diagnosis_cols]
                 )
     return buf.getvalue()
 
