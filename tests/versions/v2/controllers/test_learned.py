@@ -187,10 +187,11 @@ def test_student_kernel_matches_torch_on_recorded_rollouts(name: str) -> None:
 
 def test_policy_kernel_matches_torch_on_recorded_rollouts() -> None:
     torch = pytest.importorskip("torch")
-    from scftc_cli.versions.v2.training.ppo import ACTIONS, N_INPUTS, RecurrentPolicy
+    from scftc_cli.training.policy import RecurrentPolicy
+    from scftc_cli.versions.v2.controllers.ppo import ACTIONS, OBS_SCALE
 
     arrays, doc = recurrent.load_weights(VERSION.weights_dir / "e2e_ppo.npz")
-    model = RecurrentPolicy(PolicyConfig.from_dict(doc), N_INPUTS, ACTIONS)
+    model = RecurrentPolicy(PolicyConfig.from_dict(doc), len(OBS_SCALE), ACTIONS)
     model.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
     model = model.double().eval()
     net = E2EPPO().net
