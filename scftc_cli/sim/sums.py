@@ -9,6 +9,8 @@ numpy without AVX-512), measured on millions of random rows (``tests/sim/test_su
 - ``x (n, 4) @ B (4, 3)`` with ``n >= 2`` is OpenBLAS's ``dgemm``: for each output, the first
   product rounded, then one fused multiply-add (a single rounding) per further term, in order;
 - the same with ``n == 1`` is numpy's own loop: ``(x0 B0 + x1 B1) + (x2 B2 + x3 B3)``;
+- ``x (n, 3) @ G.T`` with ``G (m, 3)`` C-ordered is ``dgemm``'s chain too for ``n >= 2``; for one row
+  numpy calls ``dgemv``, which starts from the middle product: ``fma(x2, g2, fma(x0, g0, x1 g1))``;
 - ``np.einsum("nij,nj->ni", M, v)`` over three terms is ``(p0 + p2) + p1`` (numpy's two-lane
   loop: the third product joins the first lane, then the lanes are added).
 
@@ -45,6 +47,16 @@ def gemm4(x0, x1, x2, x3, b0, b1, b2, b3, single_row):  # pragma: no cover
     if single_row:
         return 0.0 + ((x0 * b0 + x1 * b1) + (x2 * b2 + x3 * b3))
     return 0.0 + fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
+
+
+@numba.njit(inline="always")
+def gemm3(x0, x1, x2, g0, g1, g2, single_row):  # pragma: no cover - compiled
+    """One output of ``x (n, 3) @ G.T`` (``G (m, 3)`` C-ordered, row ``g0..g2``) as numpy computes
+    it: OpenBLAS's ``dgemm`` multiply-add chain for ``n >= 2``; for one row numpy calls ``dgemv``,
+    whose kernel starts from the middle product: ``fma(x2, g2, fma(x0, g0, x1 g1))`` (module docstring)."""
+    if single_row:
+        return 0.0 + fma(x2, g2, fma(x0, g0, x1 * g1))  # type: ignore[call-arg]
+    return 0.0 + fma(x2, g2, fma(x1, g1, x0 * g0))  # type: ignore[call-arg]
 
 
 @numba.njit(inline="always")

@@ -7,7 +7,7 @@ import numba
 import numpy as np
 import pytest
 
-from scftc_cli.sim.sums import einsum3, fma, gemm4
+from scftc_cli.sim.sums import einsum3, fma, gemm3, gemm4
 
 
 @numba.njit(cache=True)
@@ -17,6 +17,16 @@ def _matmul(x, b):  # pragma: no cover - compiled
     for e in range(x.shape[0]):
         for j in range(b.shape[1]):
             out[e, j] = gemm4(x[e, 0], x[e, 1], x[e, 2], x[e, 3], b[0, j], b[1, j], b[2, j], b[3, j], single)
+    return out
+
+
+@numba.njit(cache=True)
+def _matmul3(x, g):  # pragma: no cover - compiled
+    out = np.empty((x.shape[0], g.shape[0]))
+    single = x.shape[0] == 1
+    for e in range(x.shape[0]):
+        for j in range(g.shape[0]):
+            out[e, j] = gemm3(x[e, 0], x[e, 1], x[e, 2], g[j, 0], g[j, 1], g[j, 2], single)
     return out
 
 
@@ -54,6 +64,15 @@ def test_the_wheel_matmul_is_openblas_bit_for_bit(n: int):
     for _ in range(3 if n > 1000 else 200):
         x, b = _rows(rng, n, 4), rng.normal(size=(4, 3))
         np.testing.assert_array_equal(_matmul(x, b), x @ b)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 500, 10_000])
+def test_the_rate_along_the_wheel_axes_is_numpy_bit_for_bit(n: int):
+    # x @ G.T with G (m, 3) C-ordered: a dgemm chain for a batch, dgemv's own order for one row
+    rng = np.random.default_rng(n)
+    for _ in range(3 if n > 1000 else 300):
+        x, g = _rows(rng, n, 3), rng.normal(size=(4, 3))
+        np.testing.assert_array_equal(_matmul3(x, g), x @ g.T)
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 7, 500, 10_000])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scftc_cli.versions import ControllerSpec, GymEnv, StudyPlan, Version
+from scftc_cli.versions import TUNER, ControllerSpec, GymEnv, StudyPlan, Version
 from scftc_cli.versions.v3.spec import V3
 
 REGIME_RULE = (
@@ -57,7 +57,16 @@ VERSION = Version(
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v3/",
     study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
-    tuning="scftc_cli.versions.v3.training.tuning:TUNING",  # pid and rls_dob join the battery once tuned
+    # every port's trainer is registered; a controller joins the battery above once its committed
+    # parameters or weights exist (docs/benchmark-v3.md, section 11)
+    trainers={
+        "pid": TUNER,
+        "rls_dob": TUNER,
+        "rma_student": "scftc_cli.versions.v3.training.rma:train_student",
+        "rma_dob": "scftc_cli.versions.v3.training.rma:train_student",
+        "e2e_ppo": "scftc_cli.versions.v3.training.ppo:train_e2e_ppo",
+    },
+    tuning="scftc_cli.versions.v3.training.tuning:TUNING",
     envs=(
         GymEnv(
             "scftc/AttitudeFTC-v3",

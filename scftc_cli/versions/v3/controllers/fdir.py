@@ -39,6 +39,7 @@ import numpy as np
 from scftc_cli.protocol import Context
 from scftc_cli.sim.mrp import compose, cross, norm2
 from scftc_cli.versions.v2.controllers.law import friction_nm, vote
+from scftc_cli.versions.v3.controllers import fdir_fused
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
 from scftc_cli.versions.v3.controllers.law import split_observation, wheel_momentum
 
@@ -301,6 +302,37 @@ class FDIR(MissionLaw):
         self.gyro_flag.update(ready & (np.abs(self.gyro_bias).max(axis=1) > t.gyro_tol_rad_s))
 
     def _wheels_and_rods(self, gyro: np.ndarray, tach: np.ndarray, field: np.ndarray) -> None:
+        """The wheel and rod detectors' step: ``_wheels_and_rods_reference`` in one compiled pass
+        (``fdir_fused.wheel_rod_pass``, the same bits), the state updated in place."""
+        assert self.last is not None
+        t, w, last, rods = self.thresholds, self.wheels, self.last, self.rods
+        axes = np.ascontiguousarray(w.spin_axes, dtype=np.float64)
+        rod_axes = np.ascontiguousarray(rods.axes, dtype=np.float64)
+        plant = (
+            float(w.spin_inertia_kgm2), float(w.u_max_nm), 0.95 * w.omega_max_rad_s, float(w.coulomb_nm),
+            float(w.viscous_nms), float(w.omega_linear_rad_s), float(rods.dipole_max_am2), self.context.dt_s,
+        )  # fmt: skip
+        settings = (
+            t.forgetting, t.offset_rate, t.gain_variance_max, t.warmup_steps, t.burst_offset, t.dead_gain,
+            t.half_gain, t.probe_dead_zone, t.reprobe_steps, t.probe_steps, t.gain_tol, t.offset_tol,
+            t.persist_steps, t.hold_rate_rad_s, t.rod_forgetting ** (1 / 3), t.rod_variance_max,
+            t.rod_dead_gain, t.rod_persist_steps,
+        )  # fmt: skip
+        wheel_state = (
+            self.theta, self.p, self.offset_fast, self.wheel_failed.count, self.wheel_failed.raised,
+            self.wheel_degraded.count, self.wheel_degraded.raised, self.probe_until, self.dead_zone,
+        )  # fmt: skip
+        rod_state = (
+            self.rod_theta, self.rod_p, self.rod_failed.count, self.rod_failed.raised,
+            self.rod_degraded.count, self.rod_degraded.raised,
+        )  # fmt: skip
+        readings = (gyro, last["gyro"], tach, last["tach"], last["command"], last["field"])
+        fdir_fused.wheel_rod_pass(
+            *readings, self.k, gyro.shape[0] == 1, axes, rod_axes, *plant, *settings, *wheel_state, *rod_state
+        )
+
+    def _wheels_and_rods_reference(self, gyro: np.ndarray, tach: np.ndarray, field: np.ndarray) -> None:
+        """The wheel and rod detectors' step in numpy: the definition ``_wheels_and_rods`` compiles."""
         assert self.last is not None
         t, w = self.thresholds, self.wheels
         dt, u_max = self.context.dt_s, w.u_max_nm

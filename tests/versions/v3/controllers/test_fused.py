@@ -93,6 +93,7 @@ def _numpy_law(monkeypatch):
     """Every controller's law back on ``law.py``'s numpy functions."""
     monkeypatch.setattr(analytic.MissionLaw, "act", analytic.MissionLaw.act_reference)
     monkeypatch.setattr(fdir, "rls_update", fdir.rls_update_reference)
+    monkeypatch.setattr(fdir.FDIR, "_wheels_and_rods", fdir.FDIR._wheels_and_rods_reference)
     monkeypatch.setattr(fdir, "vote", vote_reference)
     for module in (fused, pid, rls):
         monkeypatch.setattr(module, "rate_limited_demand", law.rate_limited_demand)
@@ -113,3 +114,39 @@ def test_a_rollout_through_the_compiled_law_is_the_numpy_rollout(name, monkeypat
         np.testing.assert_array_equal(compiled.commands, reference.commands)  # every command, every step
         np.testing.assert_array_equal(compiled.error_deg, reference.error_deg)
     assert V3.steps == 2400  # whole episodes: every window, the onset and the bursts were flown
+
+
+class _Reporting(fdir.FDIR):
+    """``fdir`` keeping every step's health codes."""
+
+    def reset(self, n, context):
+        super().reset(n, context)
+        self.reports = []
+
+    def act(self, obs):
+        command = super().act(obs)
+        self.reports.append(self.health())
+        return command
+
+
+@pytest.mark.slow
+def test_fdirs_compiled_wheel_and_rod_detectors_report_what_their_numpy_definition_reports(monkeypatch):
+    from scftc_cli.versions.v3.sim.faults import AgileEpisodes
+
+    cells = ("rod", "intermittent", "gain", "double")  # rods identified, bursts, probes, two wheels
+    episodes = AgileEpisodes.concat([BED.draw("train", c, n_faults=2, n_seeds=1) for c in cells])
+    for batch in (episodes, episodes.subset(np.array([0])), episodes.subset(np.array([2]))):
+        compiled = _Reporting()
+        rollout(compiled, batch)
+        with monkeypatch.context() as patch:
+            patch.setattr(fdir.FDIR, "_wheels_and_rods", fdir.FDIR._wheels_and_rods_reference)
+            reference = _Reporting()
+            rollout(reference, batch)
+        np.testing.assert_array_equal(np.stack(compiled.reports), np.stack(reference.reports))
+        for name in ("theta", "p", "offset_fast", "rod_theta", "rod_p", "probe_until"):
+            np.testing.assert_array_equal(getattr(compiled, name), getattr(reference, name))
+        assert np.stack(compiled.reports).any()  # something was detected
+    codes = np.stack(
+        compiled.reports
+    )  # the last batch: one `intermittent`... episode 2 is `intermittent`'s first
+    assert codes.shape == (V3.steps, 1, len(V3.diagnosis.units))
