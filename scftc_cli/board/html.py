@@ -699,8 +699,8 @@ def board_section(board: Leaderboard) -> str:
         ),
         (
             "diagnosis",
-            "Diagnosis (sealed draw, pooled over every sealed cell; a controller that reports none never "
-            "alarms and never detects)",
+            "Diagnosis (sealed draw; false alarms on the actuator cells, detection on every cell; a "
+            "controller that reports none never alarms and never detects)",
             _diagnosis_table(ranking, spec),
         ),
         (

@@ -73,7 +73,9 @@ class PooledDiagnosis:
 
     ``false_alarm_rate`` is the quantity the version's false-alarm budget bounds: the fraction of
     healthy episodes (nominal ones, or flight before the onset) in which the entry raised an
-    alarm. Its interval is Wilson's over episodes (each healthy stretch one trial)."""
+    alarm. Its interval is Wilson's over episodes: it treats each healthy stretch as an independent
+    trial, which the ten episodes of one fault need not be (the records keep no per-fault alarm
+    counts), so read it as a lower bound on the uncertainty."""
 
     faulted: int
     detected: int
@@ -101,15 +103,18 @@ class PooledDiagnosis:
     def mean_delay_s(self) -> float | None:
         return self.delay_total_s / self.detected if self.detected else None
 
-    def share(self, count: int) -> float:
-        """``count`` as a fraction of the faulted episodes."""
-        return count / self.faulted if self.faulted else 0.0
+    def share(self, count: int) -> float | None:
+        """``count`` as a fraction of the faulted episodes (``None`` without any)."""
+        return count / self.faulted if self.faulted else None
 
 
 def pooled_diagnosis(cells: list[CellResult]) -> PooledDiagnosis | None:
-    """The diagnosis of every cell of ``cells`` that scores one (actuator and sensor cells alike:
-    every healthy stretch can raise a false alarm), pooled; ``None`` if none does."""
+    """The diagnosis of ``cells`` pooled (``None`` if none scores one): detection, isolation and
+    delay over every cell; false alarms over the actuator cells only. A sensor cell is drawn with
+    its base class's key, so its flight before the onset is that cell's flight again (the same
+    episodes, the same noise): counting it would count the same healthy stretches several times."""
     stats = [c.diagnosis for c in cells if c.diagnosis is not None]
+    healthy = [c.diagnosis for c in cells if c.diagnosis is not None and c.sensor is None]
     if not stats:
         return None
     return PooledDiagnosis(
@@ -118,10 +123,10 @@ def pooled_diagnosis(cells: list[CellResult]) -> PooledDiagnosis | None:
         isolated=sum(s.isolated for s in stats),
         severity_right=sum(s.severity_right for s in stats),
         delay_total_s=sum((s.delay_mean_s or 0.0) * s.detected for s in stats),
-        healthy_episodes=sum(s.healthy_episodes for s in stats),
-        false_alarm_episodes=sum(s.false_alarm_episodes for s in stats),
-        healthy_hours=sum(s.healthy_hours for s in stats),
-        false_alarms=sum(s.false_alarms for s in stats),
+        healthy_episodes=sum(s.healthy_episodes for s in healthy),
+        false_alarm_episodes=sum(s.false_alarm_episodes for s in healthy),
+        healthy_hours=sum(s.healthy_hours for s in healthy),
+        false_alarms=sum(s.false_alarms for s in healthy),
     )
 
 

@@ -65,13 +65,18 @@ def diagnosis_cells(d: PooledDiagnosis) -> list[str]:
     """One entry's ``DIAGNOSIS_HEADERS`` cells."""
     low, high = d.false_alarm_interval
     delay = d.mean_delay_s
+
+    def percent(count: int) -> str:
+        share = d.share(count)
+        return "-" if share is None else f"{100 * share:.1f}"
+
     return [
         f"{d.false_alarm_episodes} / {d.healthy_episodes}: {100 * d.false_alarm_rate:.2f} "
         f"[{100 * low:.2f}, {100 * high:.2f}]",
         f"{d.false_alarms_per_hour:.3f}",
-        f"{d.detected} / {d.faulted}: {100 * d.share(d.detected):.1f}",
-        f"{100 * d.share(d.isolated):.1f}",
-        f"{100 * d.share(d.severity_right):.1f}",
+        f"{d.detected} / {d.faulted}: {percent(d.detected)}",
+        percent(d.isolated),
+        percent(d.severity_right),
         "-" if delay is None else f"{delay:.0f}",
     ]
 
@@ -81,12 +86,13 @@ def diagnosis_lines(ranking: Ranking, budget: float) -> list[str]:
     cells, beside its ranked settled rate."""
     out = [
         "",
-        f"## Diagnosis (sealed draw, pooled over every sealed cell; false-alarm budget {100 * budget:g} % "
-        "of healthy episodes)",
+        f"## Diagnosis (sealed draw; false-alarm budget {100 * budget:g} % of healthy episodes)",
         "",
-        "A controller that reports no diagnosis never alarms and never detects. Intervals: Wilson 95 % over "
-        "healthy episodes. Detection, isolation (the last report names exactly the faulted units) and the "
-        "right severity are shares of the faulted episodes; the delay is from the onset to the first alarm.",
+        "A controller that reports no diagnosis never alarms and never detects. False alarms are counted on "
+        "the actuator cells (a sensor cell repeats its base cell's flight before the onset), with the Wilson "
+        "95 % interval over healthy episodes (as if independent). Detection, isolation (the last report "
+        "names exactly the faulted units) and the right severity are shares of the faulted episodes of every "
+        "cell; the delay is from the onset to the first alarm.",
         "",
     ]
     headers = ["controller", "sealed settled (ranked)", *DIAGNOSIS_HEADERS, "over budget"]
@@ -359,6 +365,7 @@ def board_csv(board: Leaderboard) -> str:
         ]
         + ["final_error_median_deg", "final_error_mean_deg", "flagged"]
         + [f"diagnosis_{c}" for c in diagnosis_cols]
+        + (["over_false_alarm_budget"] if diagnosed else [])
     )
     for r in [*ranking.deployable, *ranking.upper_bounds]:
         e = r.entry
@@ -372,6 +379,7 @@ def board_csv(board: Leaderboard) -> str:
                     + [c.final_error_deg.median, c.final_error_deg.mean]
                     + [c.label in r.flagged]
                     + [getattr(c.diagnosis, name, "") for name in diagnosis_cols]
+                    + ([r.over_budget] if diagnosed else [])
                 )
     return buf.getvalue()
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.board.html import board_html
-from scftc_cli.board.models import Entry, Leaderboard, empty_board, ranking_rule
+from scftc_cli.board.models import Entry, Leaderboard, empty_board
 from scftc_cli.board.ranking import pooled_diagnosis, rank_board
 from scftc_cli.board.render import board_csv, board_json, board_markdown
 from scftc_cli.evaluate import board_cells
@@ -103,8 +103,10 @@ def v3_board() -> Leaderboard:
 def test_the_pooled_diagnosis_adds_every_sealed_cells_counts():
     e = entry("probe", 400, false_alarm_episodes=3, detected=100)
     d = pooled_diagnosis(e.sealed)
-    cells = len(board_cells(V3))
-    assert d is not None and d.healthy_episodes == cells * N and d.false_alarm_episodes == 3 * cells
+    cells, actuator = len(board_cells(V3)), len(V3.fault_classes)
+    assert d is not None and cells > actuator
+    # false alarms on the actuator cells only: a sensor cell flies its base cell's healthy stretch again
+    assert d.healthy_episodes == actuator * N and d.false_alarm_episodes == 3 * actuator
     assert d.false_alarm_rate == pytest.approx(3 / N)
     assert d.faulted == (cells - 1) * N and d.detected == 100 * (cells - 1)  # nominal has no fault
     assert d.mean_delay_s == pytest.approx(20.0)
@@ -133,18 +135,22 @@ def test_the_renderings_show_the_diagnosis_beside_the_settled_rate_and_the_flag(
     doc = json.loads(board_json(v3_board))
     rows = {r["name"]: r for r in doc["standings"]["deployable"]}
     assert rows["loud"]["over_false_alarm_budget"] is True
-    assert rows["quiet"]["diagnosis"]["false_alarm_episodes"] == 2 * len(board_cells(V3))
+    assert rows["quiet"]["diagnosis"]["false_alarm_episodes"] == 2 * len(V3.fault_classes)
     table = list(csv.DictReader(io.StringIO(board_csv(v3_board))))
     assert {r["diagnosis_false_alarm_episodes"] for r in table if r["name"] == "loud"} == {"10"}
+    assert {r["over_false_alarm_budget"] for r in table if r["name"] == "loud"} == {"True"}
     html = board_html([v3_board])
     assert 'id="scftc-v3-diagnosis-table"' in html and "over the false-alarm budget" in html
 
 
 def test_a_version_without_a_diagnosis_keeps_its_rule_and_tables():
-    from scftc_cli.versions.v1.spec import V1
 
-    assert empty_board(V1.version).ranking == ranking_rule(V1.ranked_classes, V1.episodes_per_cell)
-    assert "false alarm" not in empty_board(V1.version).ranking
+    from scftc_cli.board.store import default_board_path, read_board
+
+    for version in ("scftc-v1", "scftc-v2"):  # the committed boards' stored rule is what a new board gets
+        committed = read_board(default_board_path(version), version)
+        assert committed.ranking == empty_board(version).ranking
+        assert "false alarm" not in committed.ranking
     v1 = Leaderboard(rounds=[round_one()], entries=[])
     assert "## Diagnosis" not in board_markdown(v1)
     assert "diagnosis" not in board_csv(v1).splitlines()[0]

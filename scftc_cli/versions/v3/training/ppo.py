@@ -1,6 +1,6 @@
 """Trainer of ``e2e_ppo`` on ``scftc-v3``: the batched recurrent PPO of ``training/recurrent_ppo.py``
-(v2's, unchanged) on ``scftc/AttitudeFTC-v3``, every actuator class of the train split, healthy
-sensors.
+(v2's, unchanged) on ``scftc/AttitudeFTC-v3``, every actuator class of the train split (no sensor
+class drawn; ``compound`` episodes carry their companion sensor fault, as in the benchmark).
 
 The budget gives the run v2's experience in env steps: 80 rollouts of 128 whole v3 episodes (2400
 steps each) are 24.6 M env steps, as v2's 480 rollouts of 400-step episodes. Each rollout is six

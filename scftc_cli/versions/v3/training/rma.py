@@ -28,7 +28,8 @@ from scftc_cli.protocol import Context
 from scftc_cli.training import TrainReport, TrainRequest
 from scftc_cli.training.dagger import DaggerPlan, Recording, train_dagger
 from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
-from scftc_cli.versions.v2.training.rma import BUDGETS, student_config
+from scftc_cli.versions.v2.training import rma as v2_rma
+from scftc_cli.versions.v2.training.rma import student_config
 from scftc_cli.versions.v3.controllers.rma import StudentMission
 from scftc_cli.versions.v3.envs import sample_episodes
 from scftc_cli.versions.v3.sim.testbed import public_context
@@ -40,6 +41,8 @@ CLASSES: dict[str, tuple[str, ...]] = {
     "rma_dob": tuple(V3.fault_classes),
 }
 WHEELS = 4
+BUDGETS = dict(v2_rma.BUDGETS)
+"""v2's budgets (a copy: changing v3's never changes v2's)."""
 
 
 class _DaggerMission(Recording, StudentMission):

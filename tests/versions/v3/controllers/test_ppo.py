@@ -36,7 +36,7 @@ def test_an_untrained_policy_flies_the_protocol_and_refuses_another_version():
 
 
 @pytest.mark.slow
-def test_a_quick_run_writes_a_policy_the_kernel_flies_as_torch_does(tmp_path, monkeypatch):
+def test_a_quick_run_writes_a_policy_whose_export_the_trainer_checked(tmp_path, monkeypatch):
     pytest.importorskip("gymnasium")
     from scftc_cli.baselines import recurrent
     from scftc_cli.training import TrainRequest
