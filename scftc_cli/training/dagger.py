@@ -1,5 +1,5 @@
 """DAgger training of a per-wheel RMA student (``training/student.py``), shared by the versions
-whose students fly reaction wheels (``scftc-v2``, ``scftc-v3``).
+whose students fly reaction wheels (each version folder's ``training/rma.py`` gives its plan).
 
 Each iteration flies a fresh batch of train-split episodes with the student's own latched
 estimate in the loop (mixed, early on, with episodes allocated through the teacher's true

@@ -1,5 +1,5 @@
-"""Batched recurrent PPO for a version's ``e2e_ppo`` (``scftc-v2``, ``scftc-v3``): one loop, each
-version's environment, classes and observation scaling (``PPOPlan``).
+"""Batched recurrent PPO for a version's ``e2e_ppo`` (its ``training/ppo.py`` gives the plan): one
+loop, each version's environment, classes and observation scaling (``PPOPlan``).
 
 PPO (Schulman et al. 2017, arXiv 1707.06347) with the clipped surrogate, GAE (lambda 0.95), the
 learning rate annealed linearly to zero over the run, returns scaled to unit variance for the
