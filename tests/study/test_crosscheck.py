@@ -107,9 +107,17 @@ def test_an_unknown_version_suggests_the_closest():
         plan("scftc-v22")
 
 
-def test_a_version_without_a_cross_check_says_so():
-    with pytest.raises(UsageError, match="no cross-check is defined for scftc-v3"):
-        plan("scftc-v3")
+def test_a_version_without_a_cross_check_says_so(monkeypatch):
+    from scftc_cli.study import crosscheck as module
+    from scftc_cli.versions import get_version
+
+    def without(name: str):
+        version = get_version(name)
+        return dataclasses.replace(version, study=dataclasses.replace(version.study, crosscheck=None))
+
+    monkeypatch.setattr(module, "get_version", without)
+    with pytest.raises(UsageError, match="no cross-check is defined for scftc-v2"):
+        plan("scftc-v2")
 
 
 # --- scftc-v2: the one-step map and the saturation counts ------------------------------------
@@ -182,7 +190,6 @@ def test_v2_verdict_holds_wheel_speeds_to_the_tolerance_as_a_fraction_of_omega_m
     ("args", "message"),
     [
         (["--benchmark", "scftc-v22"], "scftc-v2"),
-        (["--benchmark", "scftc-v3"], "no cross-check is defined for scftc-v3"),
         (["--benchmark", "scftc-v2", "--controller", "rls_plan"], "scftc-v1 only"),
         (["--benchmark", "scftc-v2", "--controller", "teachr"], "teacher"),
     ],

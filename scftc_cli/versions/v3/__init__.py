@@ -56,7 +56,12 @@ VERSION = Version(
     ),
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v3/",
-    study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
+    study=StudyPlan(
+        sensors_in_battery=True,
+        regime_rule=REGIME_RULE,
+        detector=None,
+        crosscheck="scftc_cli.versions.v3.study:CROSSCHECK",
+    ),
     # every port's trainer is registered; a controller joins the battery above once its committed
     # parameters or weights exist (docs/benchmark-v3.md, section 11)
     trainers={
