@@ -428,7 +428,7 @@ def sensor_faults(
 
 def onset_outcomes(study: Study) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """controller -> ``(onset_s (n,), settled (n,) bool)`` over its held-out actuator cells."""
-    return actuator_outcomes(study, lambda fault: fault.onset_step * study.spec.dt_s)
+    return actuator_outcomes(study, lambda episodes: episodes.fault.onset_step * study.spec.dt_s)
 
 
 def settled_vs_onset(

@@ -181,17 +181,24 @@ class Study:
     detection: tuple[Detection, ...] = ()  # the detector per held-out actuator class, if measured
 
 
+def inertia_scale(episodes: Any) -> np.ndarray:
+    """``(n,)`` the hub-inertia scale of drawn episodes: on their fault (v1, v2) or, where it is a
+    mass property of the episode rather than part of a fault, on the episodes themselves."""
+    scale = getattr(episodes.fault, "inertia_scale", None)
+    return np.asarray(episodes.inertia_scale if scale is None else scale)
+
+
 def actuator_outcomes(
     study: Study, value: Callable[[Any], np.ndarray]
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """controller -> ``(value (n,), settled (n,) bool)`` over its held-out actuator cells, with
-    ``value(fault)`` read off each cell's drawn episodes' fault (e.g. the onset or the hub inertia)."""
+    ``value(episodes)`` read off each cell's drawn episodes (e.g. the onset or the hub inertia)."""
     out = {}
     for r in study.battery.results:
         values, settled = [], []
         for run in study.runs[r.controller]:
             if run.cell.sensor is None:
-                values.append(np.asarray(value(run.drawn().fault)))  # type: ignore[attr-defined]
+                values.append(np.asarray(value(run.drawn())))
                 settled.append(run.outcomes.settled)
         out[r.controller] = (np.concatenate(values), np.concatenate(settled))
     return out
@@ -359,10 +366,7 @@ def example_trajectories(
             except Exception as err:
                 raise StudyError(f"controller `{entry.name}` failed on {fault_class}: {err}") from err
             fault = episode.fault  # type: ignore[attr-defined]
-            # the hub's f: with the fault on v1 and v2, with the episode (a mass property) on v3
-            inertia_scale = getattr(fault, "inertia_scale", None)
-            if inertia_scale is None:
-                inertia_scale = episode.inertia_scale  # type: ignore[attr-defined]
+            scale = inertia_scale(episode)  # the hub's f, wherever the version keeps it
             assert result.error_deg is not None
             out.append(
                 Trajectory(
@@ -371,7 +375,7 @@ def example_trajectories(
                     fault_class=fault_class,
                     gain=fault.gain[0],
                     bias=fault.bias[0],
-                    inertia_scale=float(inertia_scale[0]),
+                    inertia_scale=float(scale[0]),
                     # the start (every version's first target is the origin), then the error the
                     # plant scored after each step: to the current window's target where there are
                     # several (on v1 and v2 the same bits as the angle of the attitude itself)

@@ -33,6 +33,7 @@ from scftc_cli.study.run import (
     actuator_outcomes,
     cell_outcomes,
     has_onset,
+    inertia_scale,
     outcome_columns,
 )
 from scftc_cli.versions import benchmark_option
@@ -243,7 +244,7 @@ def hub_markdown(study: Study) -> str:
     range, pooled over the actuator classes: the split holds hubs lighter and heavier than any
     trained on, and a law tuned for one inertia may hold on one side and not the other."""
     parts = hub_parts(study.spec)
-    outcomes = actuator_outcomes(study, lambda fault: fault.inertia_scale)
+    outcomes = actuator_outcomes(study, inertia_scale)
     rows = []
     for r in study.battery.results:
         scale, settled = outcomes[r.controller]

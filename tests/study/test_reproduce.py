@@ -283,3 +283,16 @@ def test_example_trajectories_on_v3_plot_the_error_to_each_windows_target() -> N
     window = spec.plant.window_steps
     assert trajectory.error_deg[window + 1] > 10 * trajectory.error_deg[window]  # the slew to target 2
     assert trajectory.error_deg[window] < 0.2 and trajectory.error_deg[-1] < 0.2  # settled on both
+
+
+def test_the_hub_inertia_scale_is_read_wherever_a_version_keeps_it() -> None:
+    """v1 and v2 keep the hub's scale on the fault, v3 on the episode (a mass property): the
+    settled-by-hub table and the trajectories read both (v3's reproduce once failed on it)."""
+    from scftc_cli.sim.testbed import testbed
+
+    for version in ("scftc-v1", "scftc-v2", "scftc-v3"):
+        episodes = testbed(version).draw("test", "gain", n_faults=3, n_seeds=1)
+        kept = getattr(episodes.fault, "inertia_scale", None)
+        expected = episodes.inertia_scale if kept is None else kept
+        np.testing.assert_array_equal(study_run.inertia_scale(episodes), expected)
+        assert study_run.inertia_scale(episodes).shape == (3,)
