@@ -32,6 +32,13 @@ VERSION = Version(
             family="reference",
         ),
         ControllerSpec(
+            "rma_student",
+            "scftc_cli.versions.v3.controllers.rma:RMAStudent",
+            "RMA: v2's per-wheel GRU estimate of g on the mission law, latched, re-opened on a change",
+            artifacts=("weights/v3/rma_student.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "fdir",
             "scftc_cli.versions.v3.controllers.fdir:FDIR",
             "residual FDIR: per-wheel torque residuals and gain identification, rod-gain identification, "
@@ -62,8 +69,8 @@ VERSION = Version(
         detector=None,
         crosscheck="scftc_cli.versions.v3.study:CROSSCHECK",
     ),
-    # every port's trainer is registered; a controller joins the battery above once its committed
-    # parameters or weights exist (docs/benchmark-v3.md, section 11)
+    # every port's trainer; a port joins the controllers above once its committed parameters or
+    # weights exist (docs/benchmark-v3.md, section 11): `scftc train` asks for a listed controller
     trainers={
         "pid": TUNER,
         "rls_dob": TUNER,
