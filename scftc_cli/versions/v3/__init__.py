@@ -39,6 +39,13 @@ VERSION = Version(
             family="learned",
         ),
         ControllerSpec(
+            "e2e_ppo",
+            "scftc_cli.versions.v3.controllers.ppo:E2EPPO",
+            "end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, trained from scratch with PPO",
+            artifacts=("weights/v3/e2e_ppo.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "fdir",
             "scftc_cli.versions.v3.controllers.fdir:FDIR",
             "residual FDIR: per-wheel torque residuals and gain identification, rod-gain identification, "

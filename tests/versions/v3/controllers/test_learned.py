@@ -19,7 +19,7 @@ from scftc_cli.versions.v3.controllers.rma import RMAStudent
 from scftc_cli.versions.v3.spec import V3
 
 V = V3.version
-LEARNED = ("rma_student",)
+LEARNED = ("rma_student", "e2e_ppo")
 BED = testbeds.testbed(V)
 
 
