@@ -41,7 +41,7 @@ VERSION = Version(
         ControllerSpec(
             "e2e_ppo",
             "scftc_cli.versions.v3.controllers.ppo:E2EPPO",
-            "end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, trained from scratch with PPO",
+            "end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch",
             artifacts=("weights/v3/e2e_ppo.npz",),
             family="learned",
         ),
