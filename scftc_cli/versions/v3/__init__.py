@@ -46,6 +46,13 @@ VERSION = Version(
             family="learned",
         ),
         ControllerSpec(
+            "rma_dob",
+            "scftc_cli.versions.v3.controllers.rma:RMADob",
+            "RMA bias-invariant gain student + per-wheel offset and friction observer, mission law",
+            artifacts=("weights/v3/rma_dob.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "fdir",
             "scftc_cli.versions.v3.controllers.fdir:FDIR",
             "residual FDIR: per-wheel torque residuals and gain identification, rod-gain identification, "

@@ -15,11 +15,11 @@ from scftc_cli.registry import make_controller
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
 from scftc_cli.versions.v3 import VERSION
-from scftc_cli.versions.v3.controllers.rma import RMAStudent
+from scftc_cli.versions.v3.controllers.rma import RMADob, RMAStudent
 from scftc_cli.versions.v3.spec import V3
 
 V = V3.version
-LEARNED = ("rma_student", "e2e_ppo")
+LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
 BED = testbeds.testbed(V)
 
 
@@ -47,7 +47,7 @@ def test_each_flies_the_protocol_and_refuses_another_version(name: str) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("student", [RMAStudent])
+@pytest.mark.parametrize("student", [RMAStudent, RMADob])
 def test_the_students_find_the_dead_wheel_of_a_train_loss_episode(student) -> None:
     episodes = BED.draw("train", "loss", n_faults=4, n_seeds=1)
     controller = student()
