@@ -9,7 +9,6 @@ import textwrap
 
 import numpy as np
 import pytest
-import yaml
 
 from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.checker import check_controller
@@ -32,6 +31,7 @@ from scftc_cli.versions.v2.controllers.student import (
 from scftc_cli.versions.v2.sim.faults import SensorFault, WheelEpisodes, WheelFault
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
 from scftc_cli.versions.v2.spec import V2
+from tests.versions.committed import check_committed_weights
 
 V = V2.version
 LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
@@ -87,17 +87,7 @@ class _Recording(StudentController):
 
 @pytest.mark.parametrize("name", LEARNED)
 def test_committed_weights_load_with_provenance(name: str) -> None:
-    path = VERSION.weights_dir / f"{name}.npz"
-    assert path.stat().st_size < 1_000_000
-    arrays, config = recurrent.load_weights(path)
-    assert arrays and all(a.dtype == np.float32 and np.all(np.isfinite(a)) for a in arrays.values())
-    doc = yaml.safe_load(path.with_suffix(".yaml").read_text())
-    assert doc["controller"] == name and doc["params"]["weights_file"] == path.name
-    assert doc["params"]["config"] == config  # the sidecar describes the weights beside it
-    prov = doc["provenance"]
-    assert prov["command"].startswith(f"scftc train --benchmark {V} --controller {name}")
-    assert prov["benchmark_version"] == V and prov["budget"] == "full" and prov["seed"] == 0
-    assert 0.0 <= prov["train_settled_rate"] <= 1.0
+    check_committed_weights(V, name)
 
 
 @pytest.mark.parametrize("name", LEARNED)

@@ -6,17 +6,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
-from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.checker import check_controller
 from scftc_cli.errors import UsageError
 from scftc_cli.registry import make_controller
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.versions.v3 import VERSION
 from scftc_cli.versions.v3.controllers.rma import RMADob, RMAStudent
 from scftc_cli.versions.v3.spec import V3
+from tests.versions.committed import check_committed_weights
 
 V = V3.version
 LEARNED = ("rma_student", "rma_dob", "e2e_ppo")
@@ -25,17 +23,7 @@ BED = testbeds.testbed(V)
 
 @pytest.mark.parametrize("name", LEARNED)
 def test_committed_weights_load_with_provenance(name: str) -> None:
-    path = VERSION.weights_dir / f"{name}.npz"
-    assert path.stat().st_size < 1_000_000
-    arrays, config = recurrent.load_weights(path)
-    assert arrays and all(a.dtype == np.float32 and np.all(np.isfinite(a)) for a in arrays.values())
-    doc = yaml.safe_load(path.with_suffix(".yaml").read_text())
-    assert doc["controller"] == name and doc["params"]["weights_file"] == path.name
-    assert doc["params"]["config"] == config  # the sidecar describes the weights beside it
-    prov = doc["provenance"]
-    assert prov["command"].startswith(f"scftc train --benchmark {V} --controller {name}")
-    assert prov["benchmark_version"] == V and prov["budget"] == "full" and prov["seed"] == 0
-    assert 0.0 <= prov["train_settled_rate"] <= 1.0
+    check_committed_weights(V, name)
 
 
 @pytest.mark.parametrize("name", LEARNED)
