@@ -121,51 +121,20 @@ def rls_update(theta, p, phi, y, forgetting, mask, trace_max):
     return new_theta, new_p
 
 
-@numba.njit(inline="always")
-def _sum(v0, v1, v2, d):  # pragma: no cover - compiled
-    """``np.einsum``'s sum of ``d`` products (2: in order; 3: ``(p0 + p2) + p1``, sim.sums), from
-    +0.0 as numpy's (all products -0.0 sum to +0.0)."""
-    return 0.0 + (v0 + v1 if d == 2 else (v0 + v2) + v1)
-
-
 @numba.njit(cache=True)
 def _rls_rows(theta, p, phi, y, forgetting, mask, trace_max, out_theta, out_p):  # pragma: no cover
+    """``fdir_fused.rls_row`` on every masked row of copies of ``theta`` and ``p``."""
     rows, d = theta.shape
     if d != 2 and d != 3:
         raise ValueError("rls_update is compiled for 2 or 3 parameters")
-    p_phi = np.zeros(3)
-    x = np.zeros(3)
-    th = np.zeros(3)
+    x, scratch, th, old_p = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros((3, 3))
     for r in range(rows):
-        for i in range(d):
-            x[i], th[i] = phi[r, i], theta[r, i]
-        if not mask[r]:
+        out_theta[r] = theta[r]
+        out_p[r] = p[r]
+        if mask[r]:
             for i in range(d):
-                out_theta[r, i] = th[i]
-                for j in range(d):
-                    out_p[r, i, j] = p[r, i, j]
-            continue
-        for i in range(d):
-            p_phi[i] = _sum(p[r, i, 0] * x[0], p[r, i, 1] * x[1], p[r, i, 2 % d] * x[2], d)
-        denom = forgetting + _sum(x[0] * p_phi[0], x[1] * p_phi[1], x[2] * p_phi[2], d)
-        error = y[r] - _sum(th[0] * x[0], th[1] * x[1], th[2] * x[2], d)
-        for i in range(d):
-            out_theta[r, i] = th[i] + p_phi[i] / denom * error
-        for i in range(d):
-            for j in range(d):
-                out_p[r, i, j] = (p[r, i, j] - p_phi[i] / denom * p_phi[j]) / forgetting
-        for i in range(d):
-            for j in range(i, d):
-                both = 0.5 * (out_p[r, i, j] + out_p[r, j, i])
-                out_p[r, i, j] = both
-                out_p[r, j, i] = both
-        trace = out_p[r, 0, 0] + out_p[r, 1, 1]
-        if d == 3:
-            trace = trace + out_p[r, 2, 2]
-        scale = min(1.0, trace_max / max(trace, 1e-300))
-        for i in range(d):
-            for j in range(d):
-                out_p[r, i, j] = out_p[r, i, j] * scale
+                x[i] = phi[r, i]
+            fdir_fused.rls_row(out_theta[r], out_p[r], x, y[r], forgetting, trace_max, d, scratch, th, old_p)
 
 
 def rls_update_reference(theta, p, phi, y, forgetting, mask, trace_max):

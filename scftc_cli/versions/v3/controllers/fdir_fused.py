@@ -7,7 +7,8 @@ squares on ``[a, 1]``, the fast offset observer, the failed / degraded latches w
 schedule; then the rods' momentum balance, its three sequential least-squares rows, the rods'
 latches. Sums run in numpy's and OpenBLAS's order (``sim/sums.py``): ``d_omega @ G'`` and the
 ``(n, 4) @ G`` products are OpenBLAS's multiply-add chains for a batch and numpy's one-row paths for
-one episode (``gemm3``, ``sums.gemm4``); ``_rls_row`` is ``fdir._rls_rows`` for one row.
+one episode (``gemm3``, ``sums.gemm4``); ``rls_row`` is the least-squares step ``fdir.rls_update``
+runs on each row.
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ def _sum(v0, v1, v2, d):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _rls_row(theta, p, x, y, forgetting, trace_max, d, p_phi, th, old_p):  # pragma: no cover - compiled
-    """One recursive-least-squares step of one row in place (``fdir._rls_rows``'s arithmetic):
+def rls_row(theta, p, x, y, forgetting, trace_max, d, p_phi, th, old_p):  # pragma: no cover - compiled
+    """One recursive-least-squares step of one row in place (``fdir.rls_update_reference``'s arithmetic):
     ``theta (d,)``, ``p (d, d)``, regressor ``x (3,)`` (the first ``d`` used), measurement ``y``;
     ``p_phi``, ``th`` (3,) and ``old_p`` (3, 3) are scratch."""
     for i in range(d):
@@ -113,7 +114,7 @@ def wheel_rod_pass(
             usable = (abs(a) < 0.9) and (abs(tach[r, i]) < speed_cap) and (k > 2)
             if usable:
                 x[0], x[1] = a, 1.0
-                _rls_row(theta[r, i], p[r, i], x, y, forgetting, 2e4, 2, scratch, th, old_p)
+                rls_row(theta[r, i], p[r, i], x, y, forgetting, 2e4, 2, scratch, th, old_p)
                 offset_fast[r, i] = (1.0 - offset_rate) * offset_fast[r, i] + offset_rate * (
                     y - theta[r, i, 0] * a
                 )
@@ -172,7 +173,7 @@ def wheel_rod_pass(
             for c in range(3):
                 for j in range(3):
                     x[j] = columns[j, c] / scale
-                _rls_row(
+                rls_row(
                     rod_theta[r],
                     rod_p[r],
                     x,
