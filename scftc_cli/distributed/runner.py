@@ -23,6 +23,7 @@ from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes
 
 SCHEDULER_ENV = "SCFTC_SCHEDULER"
+CONNECT_TIMEOUT = "10s"  # how long to keep trying a scheduler that does not answer
 CHUNK_EPISODES = 10_000  # bounds a worker's memory: ~10 k episodes' states and outcomes at a time
 INSTALL_HINT = "the cluster options need the optional extra: pip install 'scftc[dask]'"
 
@@ -187,7 +188,7 @@ def cluster(workers: int | None = None, scheduler: str | None = None) -> Iterato
                 runner.discard()
         return
     try:
-        client = Client(address, timeout="10s")
+        client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as err:
         raise ScftcError(
             f"cannot reach the Dask scheduler at {address} ({type(err).__name__}); check the address "

@@ -11,8 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-PARALLEL_MIN_BATCH = 5_000
-"""From this many rows on the pass runs on numba's threads: the same per-row code, the same bits."""
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 
 
 def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -21,8 +20,9 @@ def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
     if sigma.ndim != 2 or sigma.shape[1] != 3 or np.shape(reference) != sigma.shape:
         raise ValueError(f"relative takes two (n, 3) arrays, not {sigma.shape} and {np.shape(reference)}")
     out = np.empty(sigma.shape)
-    kernel = _relative_parallel if sigma.shape[0] >= PARALLEL_MIN_BATCH else _relative_serial
-    kernel(sigma, np.ascontiguousarray(reference, dtype=np.float64), out)
+    n = sigma.shape[0]
+    run_rows(_relative, n, sigma, np.ascontiguousarray(reference, dtype=np.float64), out,
+             parallel=n >= PARALLEL_MIN_BATCH)  # fmt: skip
     return out
 
 
@@ -49,13 +49,7 @@ def _relative_row(e, sigma, reference, out):  # pragma: no cover - compiled
     out[e, 0], out[e, 1], out[e, 2] = x0, x1, x2
 
 
-@numba.njit(cache=True)
-def _relative_serial(sigma, reference, out):  # pragma: no cover - compiled
-    for e in range(sigma.shape[0]):
-        _relative_row(e, sigma, reference, out)
-
-
-@numba.njit(parallel=True, cache=True)
-def _relative_parallel(sigma, reference, out):  # pragma: no cover - compiled
-    for e in numba.prange(sigma.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _relative(lo, hi, sigma, reference, out):  # pragma: no cover - compiled
+    for e in range(lo, hi):
         _relative_row(e, sigma, reference, out)

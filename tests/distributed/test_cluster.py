@@ -150,7 +150,13 @@ def test_a_worker_killed_mid_run_changes_nothing(dask_runner: Runner, monkeypatc
         time.sleep(0.5)  # the nanny restarts the worker for the next tests
 
 
-def test_an_unreachable_scheduler_is_one_line_naming_the_address():
+@pytest.fixture
+def impatient(monkeypatch):
+    """A refused connection is retried until the timeout: one second is enough here."""
+    monkeypatch.setattr(runner_module, "CONNECT_TIMEOUT", "1s")
+
+
+def test_an_unreachable_scheduler_is_one_line_naming_the_address(impatient):
     with pytest.raises(ScftcError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
         with cluster(scheduler="tcp://127.0.0.1:9"):
             pass
@@ -160,7 +166,7 @@ def test_an_unreachable_scheduler_is_one_line_naming_the_address():
     assert len(lines) == 1 and "tcp://127.0.0.1:9" in lines[0]
 
 
-def test_the_scheduler_can_come_from_the_environment(monkeypatch):
+def test_the_scheduler_can_come_from_the_environment(monkeypatch, impatient):
     monkeypatch.setenv("SCFTC_SCHEDULER", "tcp://127.0.0.1:9")
     result = runner_cli.invoke(app, ["eval", "--controller", "pd", "--n-faults", "1", "--n-seeds", "1"])
     assert result.exit_code == 1 and "tcp://127.0.0.1:9" in result.stderr

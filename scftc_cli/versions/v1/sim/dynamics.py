@@ -72,8 +72,9 @@ class RigidPlant(Plant):
         self.sigma = np.array(sigma0, dtype=np.float64, order="C")
         self.omega_rad_s = np.array(omega0_rad_s, dtype=np.float64, order="C")
         self.inertia_kgm2 = np.ascontiguousarray(inertia_kgm2, dtype=np.float64)
-        self.gain = np.ascontiguousarray(gain, dtype=np.float64)
-        self.bias = np.ascontiguousarray(bias, dtype=np.float64)
+        # own copies: writable whatever the episodes' arrays are (the fused kernel is compiled once)
+        self.gain = np.array(gain, dtype=np.float64)
+        self.bias = np.array(bias, dtype=np.float64)
         self.tau_max_nm, self.dt_s = float(tau_max_nm), float(dt_s)
 
     @classmethod

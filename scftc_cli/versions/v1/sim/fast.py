@@ -1,4 +1,4 @@
-"""The fast backend: the reference RK4 step fused into one numba kernel, parallel over episodes.
+"""The fast backend: the reference RK4 step fused into one numba kernel, threaded over episodes.
 
 It performs exactly the floating-point operations of ``dynamics.rk4_step`` and of the actuator
 fault ``(a g + b) tau_max``, in the same order (no fast-math, no contraction into fused
@@ -12,6 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v1.sim.dynamics import RigidPlant
 
 
@@ -103,29 +104,20 @@ def _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, 
 # fmt: on
 
 
-@numba.njit(cache=True)
-def rk4_step_serial(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
-    for e in range(sigma.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def rk4_step_rows(lo, hi, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
+    for e in range(lo, hi):
         _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
-
-
-@numba.njit(parallel=True, cache=True)
-def rk4_step_parallel(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
-    for e in numba.prange(sigma.shape[0]):
-        _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
-
-
-# Threads pay off only on large batches: on small ones the fork-join barrier costs more than the
-# work, and a busy second core stalls it badly. Both kernels run the same per-episode code.
-PARALLEL_MIN_BATCH = 5_000
 
 
 def rk4_step_inplace(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2) -> None:
     """Advance ``sigma``, ``omega`` ``(n, 3)`` in place by one RK4 step under the torque
     ``(command g + b) tau_max`` (all ``(n, 3)``), shadow-switch, and write ``|sigma|^2`` of the
-    new attitude into ``sigma_norm2`` ``(n,)``. Serial or parallel by batch size, same results."""
-    kernel = rk4_step_parallel if len(sigma) >= PARALLEL_MIN_BATCH else rk4_step_serial
-    kernel(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
+    new attitude into ``sigma_norm2`` ``(n,)``. On threads from ``PARALLEL_MIN_BATCH`` episodes on
+    (``sim.rows``), the same results."""
+    n = len(sigma)
+    run_rows(rk4_step_rows, n, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2,
+             parallel=n >= PARALLEL_MIN_BATCH)  # fmt: skip
 
 
 class FastPlant(RigidPlant):

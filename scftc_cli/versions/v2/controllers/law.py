@@ -26,6 +26,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.sums import einsum3, gemm4
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
@@ -370,35 +371,18 @@ def _command(allocations, beliefs, late, e, i, friction, r0, r1, r2, u_max, dead
     return _clip1(command)
 
 
-@numba.njit(cache=True)
-def _law_serial(
-    obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes, scalars, out
-):  # pragma: no cover - compiled
+@numba.njit(cache=True, nogil=True)
+def _law_rows(
+    lo, hi, obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes,
+    scalars, out,
+):  # fmt: skip  # pragma: no cover - compiled
     heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
     single_row = obs.shape[0] == 1
-    for e in range(obs.shape[0]):
+    for e in range(lo, hi):
         _law_episode(
             e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
             beliefs, inertia, axes, scalars, single_row, out,
         )  # fmt: skip
-
-
-@numba.njit(parallel=True, cache=True)
-def _law_parallel(
-    obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes, scalars, out
-):  # pragma: no cover - compiled
-    heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
-    single_row = obs.shape[0] == 1
-    for e in numba.prange(obs.shape[0]):
-        _law_episode(
-            e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
-            beliefs, inertia, axes, scalars, single_row, out,
-        )  # fmt: skip
-
-
-PARALLEL_MIN_BATCH = 5_000
-"""From this many episodes on the law runs on numba's threads (as the plant): below it the
-fork-join costs more than the work. Both kernels run the same per-episode code: the same bits."""
 
 
 class AnalyticLaw:
@@ -422,7 +406,7 @@ class AnalyticLaw:
         self.fuser = AttitudeFuser(n)
         self.k = 0
         self.dt_s = float(context.dt_s)
-        self.onset = np.ascontiguousarray(onset, dtype=np.int64)
+        self.onset = np.array(onset, dtype=np.int64)  # writable, as the kernel was compiled for
         shape = (n, len(wheels.spin_axes))
         self.allocations = np.stack(
             [np.broadcast_to(before[0], shape + (3,)), np.broadcast_to(after[0], shape + (3,))]
@@ -439,16 +423,17 @@ class AnalyticLaw:
             float(wheels.spin_inertia_kgm2), KP_S2, KD_S, float(wheels.u_max_nm),
             float(wheels.viscous_nms), float(wheels.omega_linear_rad_s), 1e-6,
         )  # fmt: skip
-        self._kernel = _law_parallel if n >= PARALLEL_MIN_BATCH else _law_serial
+        self.parallel = n >= PARALLEL_MIN_BATCH  # numba's threads from here on (``sim.rows``), the same bits
 
     def command(self, obs: np.ndarray) -> np.ndarray:
         """Wheel commands ``(n, m)`` in [-1, 1] for observations ``(n, 19)``."""
         obs = np.ascontiguousarray(obs, dtype=np.float64)
         n, fuser = len(obs), self.fuser
         sigma, out = np.empty((n, 3)), np.empty((n, 4))
-        self._kernel(
-            obs, fuser.sigma, fuser.last_gyro, fuser.started, self.dt_s, sigma, self.k, self.onset,
-            self.allocations, self.beliefs, self.inertia, self.axes, self.scalars, out,
+        run_rows(
+            _law_rows, n, obs, fuser.sigma, fuser.last_gyro, fuser.started, self.dt_s, sigma, self.k,
+            self.onset, self.allocations, self.beliefs, self.inertia, self.axes, self.scalars, out,
+            parallel=self.parallel,
         )  # fmt: skip
         fuser.sigma, fuser.started = sigma, True  # the kernel wrote this step's gyro into last_gyro
         self.k += 1

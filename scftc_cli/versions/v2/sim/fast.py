@@ -1,4 +1,4 @@
-"""The fast v2 backend: the reference wheel step fused into one numba kernel, parallel over episodes.
+"""The fast v2 backend: the reference wheel step fused into one numba kernel, threaded over episodes.
 
 The kernel performs exactly the floating-point operations of ``v2.dynamics`` (fault switch at
 the onset, motor torque with clip and speed saturation, four RK4 stages with friction at each,
@@ -17,6 +17,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.sim.dynamics import WheelPlantBase
 
 N_WHEELS = 4  # the kernel holds the four wheels in scalars
@@ -146,33 +147,16 @@ def _step_episode(
     applied[e, 0], applied[e, 1], applied[e, 2], applied[e, 3] = u0, u1, u2, u3
 
 
-@numba.njit(cache=True)
-def wheel_step_serial(
-    k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
+@numba.njit(cache=True, nogil=True)
+def wheel_step_rows(
+    lo, hi, k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
     coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
 ):  # fmt: skip
-    for e in range(sigma.shape[0]):
+    for e in range(lo, hi):
         _step_episode(
             e, k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
             coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
         )  # fmt: skip
-
-
-@numba.njit(parallel=True, cache=True)
-def wheel_step_parallel(
-    k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
-    coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
-):  # fmt: skip
-    for e in numba.prange(sigma.shape[0]):
-        _step_episode(
-            e, k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
-            coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
-        )  # fmt: skip
-
-
-# Threads pay off only on large batches (as v1): on small ones the fork-join barrier costs more
-# than the work. Both kernels run the same per-episode code, so the choice never changes a bit.
-PARALLEL_MIN_BATCH = 5_000
 
 
 class FastWheelPlant(WheelPlantBase):
@@ -183,8 +167,8 @@ class FastWheelPlant(WheelPlantBase):
     is a buffer too: both are overwritten by the next step, copy them to keep them.
 
     Args:
-        parallel: Force the serial (False) or the ``prange`` (True) kernel; by default the
-            parallel one runs from ``PARALLEL_MIN_BATCH`` episodes on.
+        parallel: Force one thread (False) or numba's threads (True, ``sim.rows``); by default
+            the threads run from ``PARALLEL_MIN_BATCH`` episodes on. The same bits either way.
     """
 
     name = "numpy"
@@ -194,9 +178,7 @@ class FastWheelPlant(WheelPlantBase):
         c = self.constants
         if c.n_wheels != N_WHEELS:
             raise ValueError(f"FastWheelPlant flies {N_WHEELS} wheels, the constants have {c.n_wheels}")
-        if parallel is None:
-            parallel = self.n >= PARALLEL_MIN_BATCH
-        self._kernel = wheel_step_parallel if parallel else wheel_step_serial
+        self.parallel = self.n >= PARALLEL_MIN_BATCH if parallel is None else parallel
         self._axes = np.ascontiguousarray(c.axes)
         self._scalars = (
             float(c.coulomb_nm), float(c.u_max_nm), float(c.omega_max_rad_s), float(c.js_kgm2),
@@ -207,10 +189,10 @@ class FastWheelPlant(WheelPlantBase):
     def step(self, k: int, command: np.ndarray) -> np.ndarray:
         """Advance step ``k`` (0-based) with ``command`` ``(n, 4)`` held; return ``|sigma|^2``
         ``(n,)`` of the new attitude (this plant's buffer)."""
-        self._kernel(
-            int(k), self.sigma, self.omega_rad_s, self.wheel_speed_rad_s, self._command(command),
-            self.gain, self.bias, self.coulomb_nm, self.onset_step,
+        run_rows(
+            wheel_step_rows, self.n, int(k), self.sigma, self.omega_rad_s, self.wheel_speed_rad_s,
+            self._command(command), self.gain, self.bias, self.coulomb_nm, self.onset_step,
             self.mass.total_inertia_kgm2, self.mass.coupled_inertia_inv, self._axes,
-            *self._scalars, self.applied_torque_nm, self.sigma_norm2,
+            *self._scalars, self.applied_torque_nm, self.sigma_norm2, parallel=self.parallel,
         )  # fmt: skip
         return self.sigma_norm2

@@ -33,6 +33,7 @@ import numpy as np
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose
 from scftc_cli.sim.pcg64 import fill_uniform, numpy_stream, seeded_states, standard_normal
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes, sensor_code
@@ -42,9 +43,6 @@ ARCSEC_TO_RAD = math.pi / (180.0 * 3600.0)
 NOISE_CHANNELS = 16
 """Normals per episode per step: 3 heads x 3 axes, 3 gyro axes, 4 tachometers."""
 BLOCK_STEPS = 50
-PARALLEL_MIN_BATCH = 5_000
-"""From this many episodes on, ``observe`` runs its kernel in parallel over episodes (the same
-numbers: each episode draws from its own stream)."""
 
 
 def sensor_knowledge(suite: SensorSuite, dt_s: float) -> SensorKnowledge:
@@ -75,7 +73,9 @@ class HeadsGyroTachometers(Sensors):
         self.heads = spec.sensors.star_tracker_heads
         n = episodes.n
         fault = episodes.sensor_fault
-        self.onset = np.asarray(episodes.fault.onset_step)
+        # own, writable copies: the kernel is compiled for writable arrays (a read-only episode
+        # table would cost a second compilation)
+        self.onset = np.array(episodes.fault.onset_step)
         kind = np.asarray(fault.kind)
         self.biased = kind == sensor_code(spec, "st_bias")
         self.stuck = kind == sensor_code(spec, "st_stuck")
@@ -83,8 +83,8 @@ class HeadsGyroTachometers(Sensors):
         self.gyro_step = np.where(
             (kind == sensor_code(spec, "gyro_bias"))[:, None], fault.gyro_bias_step_rad_s, 0.0
         )
-        self.head = np.asarray(fault.head)
-        self.head_bias = np.asarray(fault.head_bias_mrp)
+        self.head = np.array(fault.head)
+        self.head_bias = np.array(fault.head_bias_mrp)
         self.frozen = np.zeros((n, 3))
         self.noise_seed = np.ascontiguousarray(episodes.noise_seed, dtype=np.uint32)
         self.rng = seeded_states(self.noise_seed)  # observe's streams (PCG64(SeedSequence(seed)))
@@ -94,7 +94,9 @@ class HeadsGyroTachometers(Sensors):
         self.block = np.empty((n, BLOCK_STEPS, NOISE_CHANNELS))
         self.block_start = -BLOCK_STEPS
         self.next_step = 0  # the step observe reads next
-        self._kernel = _observe_parallel if n >= PARALLEL_MIN_BATCH else _observe_serial
+        # on threads for large batches (``sim.rows``): the same numbers, each episode draws from its
+        # own stream
+        self.parallel = n >= PARALLEL_MIN_BATCH
 
     @functools.cached_property
     def streams(self) -> list[np.random.Generator]:
@@ -156,7 +158,9 @@ class HeadsGyroTachometers(Sensors):
         states = plant.states()
         sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
         out = np.empty((len(sigma), 9 + self.heads + 3 + wheels.shape[1]))
-        self._kernel(
+        run_rows(
+            _observe_rows,
+            len(sigma),
             k,
             self.heads,
             _rows(sigma),
@@ -176,6 +180,7 @@ class HeadsGyroTachometers(Sensors):
             self.knowledge.gyro_noise_rad_s,
             self.knowledge.tachometer_noise_rad_s,
             out,
+            parallel=self.parallel,
         )
         self.next_step = k + 1
         return out
@@ -253,24 +258,12 @@ def _observe_episode(
         out[e, g + 3 + i] = wheels[e, i] + tach_scale * standard_normal(rng, e)
 
 
-@numba.njit(cache=True)
-def _observe_serial(
-    k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
-    frozen, head_scale, gyro_scale, tach_scale, out,
+@numba.njit(cache=True, nogil=True)
+def _observe_rows(
+    lo, hi, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
+    gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
 ):  # fmt: skip
-    for e in range(sigma.shape[0]):
-        _observe_episode(
-            e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
-            gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
-        )  # fmt: skip
-
-
-@numba.njit(parallel=True, cache=True)
-def _observe_parallel(
-    k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias, gyro_step,
-    frozen, head_scale, gyro_scale, tach_scale, out,
-):  # fmt: skip
-    for e in numba.prange(sigma.shape[0]):
+    for e in range(lo, hi):
         _observe_episode(
             e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
             gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,

@@ -107,13 +107,14 @@ def rls_update(theta, p, phi, y, forgetting, mask, trace_max):
     d = theta.shape[-1]
     lead = theta.shape[:-1]
     new_theta, new_p = np.empty(theta.shape), np.empty(p.shape)
+    # writable C-ordered copies, whatever came in: the kernel is compiled for one set of types
     _rls_rows(
-        np.ascontiguousarray(theta, dtype=np.float64).reshape(-1, d),
-        np.ascontiguousarray(p, dtype=np.float64).reshape(-1, d, d),
-        np.ascontiguousarray(np.broadcast_to(phi, theta.shape), dtype=np.float64).reshape(-1, d),
-        np.ascontiguousarray(np.broadcast_to(y, lead), dtype=np.float64).reshape(-1),
+        np.array(theta, dtype=np.float64).reshape(-1, d),
+        np.array(p, dtype=np.float64).reshape(-1, d, d),
+        np.array(np.broadcast_to(phi, theta.shape), dtype=np.float64).reshape(-1, d),
+        np.array(np.broadcast_to(y, lead), dtype=np.float64).reshape(-1),
         float(forgetting),
-        np.ascontiguousarray(np.broadcast_to(mask, lead)).reshape(-1),
+        np.array(np.broadcast_to(mask, lead)).reshape(-1),
         float(trace_max),
         new_theta.reshape(-1, d),
         new_p.reshape(-1, d, d),
@@ -295,7 +296,8 @@ class FDIR(MissionLaw):
             self.rod_theta, self.rod_p, self.rod_failed.count, self.rod_failed.raised,
             self.rod_degraded.count, self.rod_degraded.raised,
         )  # fmt: skip
-        readings = (gyro, last["gyro"], tach, last["tach"], last["command"], last["field"])
+        c = np.ascontiguousarray  # C-ordered, as the pass is compiled for
+        readings = (c(gyro), c(last["gyro"]), c(tach), c(last["tach"]), c(last["command"]), c(last["field"]))
         fdir_fused.wheel_rod_pass(
             *readings, self.k, gyro.shape[0] == 1, axes, rod_axes, *plant, *settings, *wheel_state, *rod_state
         )

@@ -19,7 +19,8 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
-from scftc_cli.sim.mrp_fused import PARALLEL_MIN_BATCH, relative  # one threshold for both passes
+from scftc_cli.sim.mrp_fused import relative
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
@@ -60,11 +61,11 @@ def rate_limited_demand(
     wheels = context.wheels
     assert wheels is not None
     out = np.empty(error.shape)
-    kernel = _demand_parallel if error.shape[0] >= PARALLEL_MIN_BATCH else _demand_serial
-    kernel(
-        _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
+    n = error.shape[0]
+    run_rows(
+        _demand_rows, n, _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
         float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes), _rows(kp_s2), _rows(kd_s),
-        float(slew_rate_rad_s), out,
+        float(slew_rate_rad_s), out, parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out
 
@@ -102,14 +103,15 @@ def law_commands(
     nu = np.full(m, 1.0 / np.sqrt(m))
     along = tach @ nu - null_target_rad_s * np.sqrt(m)  # numpy's own sum: kept outside the kernel
     out = np.empty((tach.shape[0], m + 3))
-    kernel = _commands_parallel if tach.shape[0] >= PARALLEL_MIN_BATCH else _commands_serial
-    kernel(
-        _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (tach.shape[0], 3))),
+    n = tach.shape[0]
+    run_rows(
+        _commands_rows, n, _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (n, 3))),
         _f64(unload).reshape(-1), _f64(gain), _f64(np.broadcast_to(offset, gain.shape)), _f64(friction_nm),
         _f64(np.broadcast_to(disturbance_nm, (tach.shape[0], 3))), _f64(tach), _f64(along),
         _f64(allocation_matrix), float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes),
         float(wheels.u_max_nm), float(rods.dipole_max_am2), UNLOAD_GAIN_PER_S,
         -null_rate_per_s * wheels.spin_inertia_kgm2, float(nu[0]), ALLOCATE_DEAD_BELOW, out,
+        parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out
 
@@ -122,7 +124,7 @@ def _demand_episode(
     e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out
 ):  # pragma: no cover - compiled
     """``law.rate_limited_demand`` of one episode."""
-    # e - e, not 0: prange's index may be unsigned, and numba unifies uint64 with int64 as float64
+    # e - e, not 0: one integer type in both branches (numba unifies uint64 with int64 as float64)
     row = e if kp.shape[0] > 1 else e - e
     ratio = -(kp[row] / kd[row])
     w0, w1, w2 = ratio * error[e, 0], ratio * error[e, 1], ratio * error[e, 2]
@@ -211,43 +213,23 @@ def _commands_episode(
         )
 
 
-# --- serial and parallel loops ----------------------------------------------------------------
+# --- the row loops (``sim.rows`` runs them, on threads for large batches) ----------------------
 
 
-@numba.njit(cache=True)
-def _demand_serial(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover - compiled
+@numba.njit(cache=True, nogil=True)
+def _demand_rows(lo, hi, error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover
     single_row = error.shape[0] == 1
-    for e in range(error.shape[0]):
+    for e in range(lo, hi):
         _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
 
 
-@numba.njit(parallel=True, cache=True)
-def _demand_parallel(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover - compiled
-    single_row = error.shape[0] == 1
-    for e in numba.prange(error.shape[0]):
-        _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
-
-
-@numba.njit(cache=True)
-def _commands_serial(
-    demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js, axes,
-    u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
+@numba.njit(cache=True, nogil=True)
+def _commands_rows(
+    lo, hi, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
+    axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     single_row = tach.shape[0] == 1
-    for e in range(tach.shape[0]):
-        _commands_episode(
-            e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
-            js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
-        )  # fmt: skip
-
-
-@numba.njit(parallel=True, cache=True)
-def _commands_parallel(
-    demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js, axes,
-    u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
-):  # fmt: skip  # pragma: no cover - compiled
-    single_row = tach.shape[0] == 1
-    for e in numba.prange(tach.shape[0]):
+    for e in range(lo, hi):
         _commands_episode(
             e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
             js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,

@@ -1,4 +1,4 @@
-"""The fast v3 backend: the reference step fused into one numba kernel, parallel over episodes.
+"""The fast v3 backend: the reference step fused into one numba kernel, threaded over episodes.
 
 The kernel performs exactly the floating-point operations of ``dynamics.py`` (faults at the step,
 motor torque with clip and speed saturation, rod dipoles, the three stage positions, four RK4
@@ -17,6 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.sim.fast import _friction, _motor  # the wheels are v2's, per wheel and bit for bit
 from scftc_cli.versions.v3.sim.dynamics import V3Constants, V3PlantBase
 
@@ -287,24 +288,14 @@ def _step_episode(e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g,
     out[e, _TRQ], out[e, _TRQ + 1], out[e, _TRQ + 2] = ka[10], ka[11], ka[12]
 
 
-@numba.njit(cache=True)
-def v3_step_serial(k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2):
-    for e in range(x.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def v3_step_rows(
+    lo, hi, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
+):  # fmt: skip
+    for e in range(lo, hi):
         _step_episode(
             e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
         )
-
-
-@numba.njit(parallel=True, cache=True)
-def v3_step_parallel(k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2):
-    for e in numba.prange(x.shape[0]):
-        _step_episode(
-            e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
-        )
-
-
-# As v2: threads pay off only on large batches; both kernels run the same per-episode code.
-PARALLEL_MIN_BATCH = 5_000
 
 
 class FastV3Plant(V3PlantBase):
@@ -316,8 +307,8 @@ class FastV3Plant(V3PlantBase):
     overwritten by the next step, copy them to keep them.
 
     Args:
-        parallel: Force the serial (False) or the ``prange`` (True) kernel; by default the
-            parallel one runs from ``PARALLEL_MIN_BATCH`` episodes on.
+        parallel: Force one thread (False) or numba's threads (True, ``sim.rows``); by default
+            the threads run from ``PARALLEL_MIN_BATCH`` episodes on. The same bits either way.
     """
 
     name = "numpy"
@@ -328,9 +319,7 @@ class FastV3Plant(V3PlantBase):
         w, e = c.wheels, c.environment
         if w.n_wheels != N_WHEELS:
             raise ValueError(f"FastV3Plant flies {N_WHEELS} wheels, the constants have {w.n_wheels}")
-        if parallel is None:
-            parallel = self.n >= PARALLEL_MIN_BATCH
-        self._kernel = v3_step_parallel if parallel else v3_step_serial
+        self.parallel = self.n >= PARALLEL_MIN_BATCH if parallel is None else parallel
         self._axes = np.ascontiguousarray(w.axes)
         n, env, geo, f = self.n, self.env, self.geometry, self.fault
         table = np.empty((n, ENV_COLUMNS))
@@ -380,10 +369,10 @@ class FastV3Plant(V3PlantBase):
         plant's buffer)."""
         cos0, sin0 = self.trig_at(k)
         cos1, sin1 = self.trig_at(k + 1)
-        self._kernel(
-            int(k), self._x, cos0, sin0, cos1, sin1, self._command(command), self._ff, self._fi,
-            self.mass.total_inertia_kgm2, self.mass.coupled_inertia_inv, self._axes, self._env_table,
-            self._scalars, self._out, self.sigma_norm2,
+        run_rows(
+            v3_step_rows, self.n, int(k), self._x, cos0, sin0, cos1, sin1, self._command(command), self._ff,
+            self._fi, self.mass.total_inertia_kgm2, self.mass.coupled_inertia_inv, self._axes,
+            self._env_table, self._scalars, self._out, self.sigma_norm2, parallel=self.parallel,
         )  # fmt: skip
         self.time_s = (k + 1) * self.constants.dt_s
         return self.sigma_norm2

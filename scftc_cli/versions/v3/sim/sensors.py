@@ -138,12 +138,13 @@ class V3Sensors(Sensors):
         self.v2 = HeadsGyroTachometers(v2_view, V2)  # type: ignore[arg-type]
         self.noise_t = noise_t
         mag = episodes.magnetometer
-        self.onset = np.ascontiguousarray(episodes.onset_step, dtype=np.int64)
+        # own copies: writable whatever the episodes' arrays are (the kernel is compiled once)
+        self.onset = np.array(episodes.onset_step, dtype=np.int64)
         self.biased = np.ascontiguousarray(np.asarray(mag.kind) == MAG_BIAS)
         self.spiking = np.ascontiguousarray(np.asarray(mag.kind) == MAG_SPIKE)
-        self.bias_t = np.ascontiguousarray(mag.bias_t, dtype=np.float64)
-        self.spike_probability = np.ascontiguousarray(mag.spike_probability, dtype=np.float64)
-        self.spike_amount = np.ascontiguousarray(mag.spike_amount, dtype=np.float64)
+        self.bias_t = np.array(mag.bias_t, dtype=np.float64)
+        self.spike_probability = np.array(mag.spike_probability, dtype=np.float64)
+        self.spike_amount = np.array(mag.spike_amount, dtype=np.float64)
         self.noise_seed = np.ascontiguousarray(episodes.noise_seed, dtype=np.uint32)
         n = len(self.noise_seed)
         self.rng = seeded_states(self.noise_seed, (NORMALS_KEY,))  # observe's copies of the streams

@@ -280,8 +280,9 @@ def test_quick_tuning_flies_train_episodes_only_and_is_deterministic(tmp_path, m
 
     monkeypatch.setattr(TESTBED, "draw", recording_draw)
     monkeypatch.setattr(v2_fdir, "sample_episodes_batch", recording_sample)
-    # a run's determinism does not depend on its length: smaller samples, the same code
-    shorter = dataclasses.replace(v2_fdir.BUDGETS["quick"], calibration_per_cell=3, final_faults=2)
+    # a run's determinism does not depend on its length: smaller samples and the search's first
+    # generation only, the same code
+    shorter = dataclasses.replace(v2_fdir.BUDGETS["quick"], calibration_per_cell=3, final_faults=2, maxiter=0)
     monkeypatch.setitem(v2_fdir.BUDGETS, "quick", shorter)
     outputs = []
     for i in range(2):

@@ -354,10 +354,12 @@ def test_quick_training_is_deterministic_for_a_seed(name: str, tmp_path, monkeyp
 
     from scftc_cli.training import TrainRequest, get_trainer
 
-    # a run's determinism does not depend on its length: fewer iterations, the same code
+    # a run's determinism does not depend on its length: fewer iterations, one episode per class in
+    # each checkpoint evaluation, the same code
+    fewer = {"eval_faults": 1, "eval_seeds": 1}
     module, shorter = {
-        "rma_dob": ("scftc_cli.versions.v2.training.rma", {"iterations": 4, "eval_every": 2}),
-        "e2e_ppo": ("scftc_cli.versions.v2.training.ppo", {"rollouts": 2, "eval_every": 1}),
+        "rma_dob": ("scftc_cli.versions.v2.training.rma", {"iterations": 4, "eval_every": 2, **fewer}),
+        "e2e_ppo": ("scftc_cli.versions.v2.training.ppo", {"rollouts": 2, "eval_every": 1, **fewer}),
     }[name]
     budgets = importlib.import_module(module).BUDGETS
     monkeypatch.setitem(budgets, "quick", dataclasses.replace(budgets["quick"], **shorter))

@@ -67,11 +67,11 @@ def test_fast_backend_is_bit_identical_with_a_feedback_law_in_the_loop():
     np.testing.assert_array_equal(fused.sigma_norm2, norm2(ref.sigma))
 
 
-def test_serial_and_parallel_kernels_are_identical():
+def test_one_thread_and_numbas_threads_are_identical():
     n = 600
     args = _rich_batch(n, seed=23)
     serial, parallel = FastWheelPlant(**args, parallel=False), FastWheelPlant(**args, parallel=True)
-    assert serial._kernel is fast.wheel_step_serial and parallel._kernel is fast.wheel_step_parallel
+    assert not serial.parallel and parallel.parallel
     rng = np.random.default_rng(24)
     for k in range(100):
         command = rng.uniform(-1.2, 1.2, (n, 4))
@@ -80,11 +80,11 @@ def test_serial_and_parallel_kernels_are_identical():
         np.testing.assert_array_equal(getattr(serial, field), getattr(parallel, field), err_msg=field)
 
 
-def test_the_kernel_is_chosen_by_batch_size():
+def test_threads_are_chosen_by_batch_size():
     small = _rich_batch(8, seed=25)
-    assert FastWheelPlant(**small)._kernel is fast.wheel_step_serial
+    assert not FastWheelPlant(**small).parallel
     big = {key: np.repeat(value, fast.PARALLEL_MIN_BATCH // 8, axis=0) for key, value in small.items()}
-    assert FastWheelPlant(**big)._kernel is fast.wheel_step_parallel
+    assert FastWheelPlant(**big).parallel
 
 
 def test_fast_backend_flies_four_wheels_only():

@@ -148,14 +148,14 @@ def test_the_context_crosses_the_sandbox_boundary_intact():
 def test_observe_is_its_numpy_reference_to_the_bit(parallel: bool, monkeypatch):
     """``observe`` (numba, noise drawn in the kernel) against ``observe_reference`` (numpy arrays,
     noise from numpy's generators), on a moving plant, every sensor fault, whole episodes; the
-    parallel kernel too (forced on a small batch)."""
+    threaded kernel too (forced on a small batch)."""
     from scftc_cli.versions.v2.sim import sensors as module
 
     monkeypatch.setattr(module, "PARALLEL_MIN_BATCH", 1 if parallel else 10**9)
     for sensor in (None, "st_bias", "st_stuck", "st_outage", "gyro_bias"):
         episodes = TESTBED.draw("test", "sign", sensor, n_faults=6, n_seeds=2)
         fused, reference = HeadsGyroTachometers(episodes), HeadsGyroTachometers(episodes)
-        assert fused._kernel is (module._observe_parallel if parallel else module._observe_serial)
+        assert fused.parallel is parallel
         plant = TESTBED.plant(episodes, "numpy")
         for k in range(V2.steps):
             obs = fused.observe(k, plant)

@@ -74,11 +74,11 @@ def test_fast_backend_is_bit_identical_with_a_feedback_law_in_the_loop():
     assert np.abs(fused.dipole_am2).max() > 1.0  # the rods did work
 
 
-def test_serial_and_parallel_kernels_are_identical():
+def test_one_thread_and_numbas_threads_are_identical():
     n = 300
     args = _rich_batch(n, seed=33)
     serial, parallel = FastV3Plant(**args, parallel=False), FastV3Plant(**args, parallel=True)
-    assert serial._kernel is fast.v3_step_serial and parallel._kernel is fast.v3_step_parallel
+    assert not serial.parallel and parallel.parallel
     rng = np.random.default_rng(34)
     for k in range(60):
         cmd = rng.uniform(-1.2, 1.2, (n, 7))
@@ -86,11 +86,10 @@ def test_serial_and_parallel_kernels_are_identical():
     _assert_same(serial, parallel, "end")
 
 
-def test_the_kernel_is_chosen_by_batch_size():
+def test_threads_are_chosen_by_batch_size():
     rng = np.random.default_rng(35)
-    assert FastV3Plant(**random_plant_args(rng, 8))._kernel is fast.v3_step_serial
-    big = FastV3Plant(**random_plant_args(rng, fast.PARALLEL_MIN_BATCH))
-    assert big._kernel is fast.v3_step_parallel
+    assert not FastV3Plant(**random_plant_args(rng, 8)).parallel
+    assert FastV3Plant(**random_plant_args(rng, fast.PARALLEL_MIN_BATCH)).parallel
 
 
 def test_fast_backend_flies_four_wheels_only():
