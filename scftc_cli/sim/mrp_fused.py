@@ -21,7 +21,7 @@ def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
         raise ValueError(f"relative takes two (n, 3) arrays, not {sigma.shape} and {np.shape(reference)}")
     out = np.empty(sigma.shape)
     n = sigma.shape[0]
-    run_rows(_relative, n, sigma, np.ascontiguousarray(reference, dtype=np.float64), out,
+    run_rows(_relative, sigma, np.ascontiguousarray(reference, dtype=np.float64), out,
              parallel=n >= PARALLEL_MIN_BATCH)  # fmt: skip
     return out
 
@@ -49,7 +49,7 @@ def _relative_row(e, sigma, reference, out):  # pragma: no cover - compiled
     out[e, 0], out[e, 1], out[e, 2] = x0, x1, x2
 
 
-@numba.njit(cache=True, nogil=True)
-def _relative(lo, hi, sigma, reference, out):  # pragma: no cover - compiled
-    for e in range(lo, hi):
+@numba.njit(parallel=True, cache=True)
+def _relative(sigma, reference, out):  # pragma: no cover - compiled
+    for e in numba.prange(sigma.shape[0]):
         _relative_row(e, sigma, reference, out)

@@ -104,9 +104,9 @@ def _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, 
 # fmt: on
 
 
-@numba.njit(cache=True, nogil=True)
-def rk4_step_rows(lo, hi, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
-    for e in range(lo, hi):
+@numba.njit(parallel=True, cache=True)
+def rk4_step_rows(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2):
+    for e in numba.prange(sigma.shape[0]):
         _step_episode(e, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2)
 
 
@@ -116,7 +116,7 @@ def rk4_step_inplace(sigma, omega, command, gain, bias, tau_max, inertia, dt_s, 
     new attitude into ``sigma_norm2`` ``(n,)``. On threads from ``PARALLEL_MIN_BATCH`` episodes on
     (``sim.rows``), the same results."""
     n = len(sigma)
-    run_rows(rk4_step_rows, n, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2,
+    run_rows(rk4_step_rows, sigma, omega, command, gain, bias, tau_max, inertia, dt_s, sigma_norm2,
              parallel=n >= PARALLEL_MIN_BATCH)  # fmt: skip
 
 

@@ -371,14 +371,14 @@ def _command(allocations, beliefs, late, e, i, friction, r0, r1, r2, u_max, dead
     return _clip1(command)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True)
 def _law_rows(
-    lo, hi, obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes,
+    obs, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations, beliefs, inertia, axes,
     scalars, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
     single_row = obs.shape[0] == 1
-    for e in range(lo, hi):
+    for e in numba.prange(obs.shape[0]):
         _law_episode(
             e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
             beliefs, inertia, axes, scalars, single_row, out,
@@ -431,7 +431,7 @@ class AnalyticLaw:
         n, fuser = len(obs), self.fuser
         sigma, out = np.empty((n, 3)), np.empty((n, 4))
         run_rows(
-            _law_rows, n, obs, fuser.sigma, fuser.last_gyro, fuser.started, self.dt_s, sigma, self.k,
+            _law_rows, obs, fuser.sigma, fuser.last_gyro, fuser.started, self.dt_s, sigma, self.k,
             self.onset, self.allocations, self.beliefs, self.inertia, self.axes, self.scalars, out,
             parallel=self.parallel,
         )  # fmt: skip

@@ -147,12 +147,12 @@ def _step_episode(
     applied[e, 0], applied[e, 1], applied[e, 2], applied[e, 3] = u0, u1, u2, u3
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True)
 def wheel_step_rows(
-    lo, hi, k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
+    k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
     coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
 ):  # fmt: skip
-    for e in range(lo, hi):
+    for e in numba.prange(sigma.shape[0]):
         _step_episode(
             e, k, sigma, omega, wheel, command, gain, bias, coulomb, onset, tot, inv, g,
             coulomb0, u_max, omega_max, js, viscous, linear, dt, applied, sigma_norm2,
@@ -190,7 +190,7 @@ class FastWheelPlant(WheelPlantBase):
         """Advance step ``k`` (0-based) with ``command`` ``(n, 4)`` held; return ``|sigma|^2``
         ``(n,)`` of the new attitude (this plant's buffer)."""
         run_rows(
-            wheel_step_rows, self.n, int(k), self.sigma, self.omega_rad_s, self.wheel_speed_rad_s,
+            wheel_step_rows, int(k), self.sigma, self.omega_rad_s, self.wheel_speed_rad_s,
             self._command(command), self.gain, self.bias, self.coulomb_nm, self.onset_step,
             self.mass.total_inertia_kgm2, self.mass.coupled_inertia_inv, self._axes,
             *self._scalars, self.applied_torque_nm, self.sigma_norm2, parallel=self.parallel,

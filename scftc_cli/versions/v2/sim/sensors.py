@@ -160,7 +160,6 @@ class HeadsGyroTachometers(Sensors):
         out = np.empty((len(sigma), 9 + self.heads + 3 + wheels.shape[1]))
         run_rows(
             _observe_rows,
-            len(sigma),
             k,
             self.heads,
             _rows(sigma),
@@ -258,12 +257,12 @@ def _observe_episode(
         out[e, g + 3 + i] = wheels[e, i] + tach_scale * standard_normal(rng, e)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True)
 def _observe_rows(
-    lo, hi, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
+    k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
     gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
 ):  # fmt: skip
-    for e in range(lo, hi):
+    for e in numba.prange(sigma.shape[0]):
         _observe_episode(
             e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
             gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,

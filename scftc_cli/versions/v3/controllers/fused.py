@@ -63,7 +63,7 @@ def rate_limited_demand(
     out = np.empty(error.shape)
     n = error.shape[0]
     run_rows(
-        _demand_rows, n, _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
+        _demand_rows, _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
         float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes), _rows(kp_s2), _rows(kd_s),
         float(slew_rate_rad_s), out, parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
@@ -105,7 +105,7 @@ def law_commands(
     out = np.empty((tach.shape[0], m + 3))
     n = tach.shape[0]
     run_rows(
-        _commands_rows, n, _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (n, 3))),
+        _commands_rows, _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (n, 3))),
         _f64(unload).reshape(-1), _f64(gain), _f64(np.broadcast_to(offset, gain.shape)), _f64(friction_nm),
         _f64(np.broadcast_to(disturbance_nm, (tach.shape[0], 3))), _f64(tach), _f64(along),
         _f64(allocation_matrix), float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes),
@@ -124,7 +124,7 @@ def _demand_episode(
     e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out
 ):  # pragma: no cover - compiled
     """``law.rate_limited_demand`` of one episode."""
-    # e - e, not 0: one integer type in both branches (numba unifies uint64 with int64 as float64)
+    # e - e, not 0: prange's index may be unsigned, and numba unifies uint64 with int64 as float64
     row = e if kp.shape[0] > 1 else e - e
     ratio = -(kp[row] / kd[row])
     w0, w1, w2 = ratio * error[e, 0], ratio * error[e, 1], ratio * error[e, 2]
@@ -216,20 +216,20 @@ def _commands_episode(
 # --- the row loops (``sim.rows`` runs them, on threads for large batches) ----------------------
 
 
-@numba.njit(cache=True, nogil=True)
-def _demand_rows(lo, hi, error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover
+@numba.njit(parallel=True, cache=True)
+def _demand_rows(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover
     single_row = error.shape[0] == 1
-    for e in range(lo, hi):
+    for e in numba.prange(error.shape[0]):
         _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True)
 def _commands_rows(
-    lo, hi, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
+    demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
     axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     single_row = tach.shape[0] == 1
-    for e in range(lo, hi):
+    for e in numba.prange(tach.shape[0]):
         _commands_episode(
             e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
             js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,

@@ -288,11 +288,11 @@ def _step_episode(e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g,
     out[e, _TRQ], out[e, _TRQ + 1], out[e, _TRQ + 2] = ka[10], ka[11], ka[12]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True)
 def v3_step_rows(
-    lo, hi, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
+    k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
 ):  # fmt: skip
-    for e in range(lo, hi):
+    for e in numba.prange(x.shape[0]):
         _step_episode(
             e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g, env, sc, out, sigma_norm2
         )
@@ -370,7 +370,7 @@ class FastV3Plant(V3PlantBase):
         cos0, sin0 = self.trig_at(k)
         cos1, sin1 = self.trig_at(k + 1)
         run_rows(
-            v3_step_rows, self.n, int(k), self._x, cos0, sin0, cos1, sin1, self._command(command), self._ff,
+            v3_step_rows, int(k), self._x, cos0, sin0, cos1, sin1, self._command(command), self._ff,
             self._fi, self.mass.total_inertia_kgm2, self.mass.coupled_inertia_inv, self._axes,
             self._env_table, self._scalars, self._out, self.sigma_norm2, parallel=self.parallel,
         )  # fmt: skip
