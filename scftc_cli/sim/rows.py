@@ -3,7 +3,7 @@ large batches, from one compilation.
 
 Every fused kernel (plants, sensors, laws) is a ``numba.prange`` loop over the batch's rows that
 runs the same per-row code, compiled once with ``parallel=True``; ``run_rows`` sets how many threads
-the call may use (numba's ``set_num_threads``, for this call only). Small batches run on the
+the call may use (numba's ``set_num_threads``, which holds per calling thread). Small batches run on the
 calling thread alone: there, handing rows to other threads costs more than the work, and threads
 waiting for the next step take a core from the sensors and the controller.
 
@@ -20,6 +20,7 @@ Dask workers set it to their share).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -27,6 +28,8 @@ import numba
 
 PARALLEL_MIN_BATCH = 5_000
 """From this many rows on a kernel runs on all of numba's threads."""
+
+_calling = threading.local()  # the thread count run_rows last set on each calling thread
 
 
 def thread_count() -> int:
@@ -36,14 +39,10 @@ def thread_count() -> int:
 
 def run_rows(kernel: Callable[..., Any], *args: Any, parallel: bool = False) -> None:
     """``kernel(*args)``, a ``prange`` kernel, on all of numba's threads (``parallel``) or on this
-    one alone; the calling thread's thread count is restored afterwards."""
+    one alone. The calling thread keeps that thread count (numba's ``set_num_threads`` is per
+    thread, and is called only when the count changes: a loop over steps pays it once)."""
     threads = thread_count() if parallel else 1
-    before = numba.get_num_threads()
-    if threads == before:
-        kernel(*args)
-        return
-    numba.set_num_threads(threads)
-    try:
-        kernel(*args)
-    finally:
-        numba.set_num_threads(before)
+    if getattr(_calling, "threads", None) != threads:
+        numba.set_num_threads(threads)
+        _calling.threads = threads
+    kernel(*args)

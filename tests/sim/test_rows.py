@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-import pytest
 
 from scftc_cli.sim import rows
 
@@ -24,16 +23,13 @@ def test_small_batches_run_on_this_thread_and_large_ones_on_every_thread() -> No
     assert rows.thread_count() >= 2, "CI runs on two cores or more: the threads were not exercised"
 
 
-def test_the_callers_thread_count_is_restored_even_after_an_error() -> None:
-    before = numba.get_num_threads()
-
-    def failing(_out: np.ndarray) -> None:
-        assert numba.get_num_threads() == 1
-        raise FloatingPointError("in the kernel")
-
-    with pytest.raises(FloatingPointError, match="in the kernel"):
-        rows.run_rows(failing, np.zeros(3))
-    assert numba.get_num_threads() == before
+def test_the_thread_count_is_set_only_when_it_changes(monkeypatch) -> None:
+    calls: list[int] = []
+    monkeypatch.setattr(rows.numba, "set_num_threads", lambda n: calls.append(n))
+    monkeypatch.setattr(rows._calling, "threads", None, raising=False)
+    for parallel in (False, False, True, True, False):
+        rows.run_rows(lambda: None, parallel=parallel)
+    assert calls == [1, rows.thread_count(), 1]
 
 
 def test_each_fused_kernel_is_one_prange_kernel() -> None:
