@@ -4,7 +4,7 @@ Run: ``python benchmarks/v2_loop_parts.py [--batch 10000] [--steps 100] [--repea
 [--out benchmarks/results/v2_loop_parts.json]``
 
 Flies ``pd`` through ``--steps`` steps of ``--batch`` held-out episodes (as
-``benchmarks/v2_throughput.py``) on serial kernels, and times each part of every step with the
+``benchmarks/v2_throughput.py``) with every kernel on one thread, and times each part of every step with the
 process's CPU clock (``time.process_time``), which, unlike the wall clock, a busy second core does
 not stretch much: this 2-core machine is shared with other jobs. Parts: the sensors (``observe``:
 one numba pass that also draws the noise; and ``observe_reference``, the numpy definition drawing
@@ -72,7 +72,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/v2_loop_parts.json"))
     args = parser.parse_args()
-    # serial kernels: CPU time is work
+    # every kernel on one thread: CPU time is work
     fast.PARALLEL_MIN_BATCH = sensors.PARALLEL_MIN_BATCH = law.PARALLEL_MIN_BATCH = sys.maxsize
     one_run(8, 3)  # compile or load the kernels
     load_before = os.getloadavg()[0]
@@ -80,7 +80,7 @@ def main() -> None:
     per = {part: min(r[part] for r in runs) / (args.batch * args.steps) * 1e9 for part in PARTS}
     loop = per["observe"] + per["act"] + per["plant"]
     doc = {
-        "benchmark": "scftc-v2 closed loop with pd, CPU time per part (serial kernels)",
+        "benchmark": "scftc-v2 closed loop with pd, CPU time per part (kernels on one thread)",
         "command": " ".join([Path(sys.executable).name, *sys.argv]),
         "cpus": os.cpu_count(),
         "batch": args.batch,
