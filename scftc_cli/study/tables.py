@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel
 
+from scftc_cli.board.ranking import pooled_diagnosis
+from scftc_cli.board.render import DIAGNOSIS_HEADERS, diagnosis_cells
 from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.render import deff_text, markdown_table, pct, pct_by_fault
 from scftc_cli.scoring import gate_stat
@@ -421,10 +423,67 @@ def _dump_json(model: BaseModel) -> str:
     return model.model_dump_json(by_alias=True, indent=2) + "\n"
 
 
+def diagnosis_markdown(study: Study) -> str:
+    """What each battery controller's fault detection said (versions that score a diagnosis):
+    pooled as the board pools an entry's cells, then detection per class and false alarms per
+    actuator class (a sensor cell's flight before its onset is its base cell's flight again)."""
+    spec, report = study.spec, study.battery
+    assert spec.diagnosis is not None
+    results = [r for r in report.results if any(c.diagnosis is not None for c in r.cells)]
+    pooled = [(r, pooled_diagnosis(r.cells)) for r in results]
+    rows = [[_label(r), *diagnosis_cells(d)] for r, d in pooled if d is not None]
+    classes = list(dict.fromkeys(c.sensor or c.fault_class for r in results for c in r.cells))
+    actuator = [c for c in spec.fault_classes if c in classes]
+
+    def detected(cell: CellResult | None) -> str:
+        d = cell.diagnosis if cell is not None else None
+        return "-" if d is None or not d.faulted else f"{100 * d.detected / d.faulted:.0f}"
+
+    def false_alarms(cell: CellResult | None) -> str:
+        d = cell.diagnosis if cell is not None else None
+        return (
+            "-" if d is None or not d.healthy_episodes else f"{d.false_alarm_episodes} / {d.healthy_episodes}"
+        )
+
+    by_class = [_cells_by_class(r) for r in results]
+    return (
+        f"# SCFTC diagnosis ({report.benchmark_version}, held-out test split)\n\n"
+        f"What each controller's health reports said against the truth, on the battery's cells (n = "
+        f"{report.n_faults * report.n_seeds} episodes per cell; units: {', '.join(spec.diagnosis.units)}). "
+        "A controller that reports no diagnosis never alarms and never detects. False alarms: episodes "
+        "with an alarm raised in healthy flight (a nominal episode, or before the onset), counted on the "
+        "actuator cells, with the Wilson 95 % interval over those episodes as if independent (the records "
+        "keep no per-fault alarm counts, so read it as a lower bound on the uncertainty); the board flags "
+        f"an entry above {100 * spec.diagnosis.false_alarm_budget:g} %. Detection, isolation (the last "
+        "report names exactly the faulted units) and the right severity are shares of the faulted "
+        "episodes; the delay runs from the onset to the first alarm.\n\n"
+        f"Regenerate with `{_regenerate(report.benchmark_version)}`.\n\n"
+        "## Pooled over every cell\n\n"
+        + markdown_table(["controller", *DIAGNOSIS_HEADERS], rows)
+        + "\n## Detected, % of each class's faulted episodes\n\n"
+        + markdown_table(
+            ["controller", *classes],
+            [
+                [_label(r), *(detected(cells.get(c)) for c in classes)]
+                for r, cells in zip(results, by_class, strict=True)
+            ],
+        )
+        + "\n## False-alarm episodes / healthy episodes, per actuator class\n\n"
+        + markdown_table(
+            ["controller", *actuator],
+            [
+                [_label(r), *(false_alarms(cells.get(c)) for c in actuator)]
+                for r, cells in zip(results, by_class, strict=True)
+            ],
+        )
+    )
+
+
 def write_tables(study: Study, out_dir: Path) -> list[Path]:
     """Write ``battery.md``, ``battery.json``, ``sensor.md``, ``sensor.json`` into ``out_dir``,
     ``settled_by_hub.md`` where the held-out hub inertia has several parts,
-    ``fdir_detection.md`` where the study measured ``fdir``'s detector, then
+    ``fdir_detection.md`` where the study measured ``fdir``'s detector, ``diagnosis.md`` where the
+    version scores a diagnosis, then
     ``gate_sensitivity.md``, ``final_error_profile.md``, ``settling_time.md`` and
     ``distributions.json``."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -438,6 +497,8 @@ def write_tables(study: Study, out_dir: Path) -> list[Path]:
         contents["settled_by_hub.md"] = hub_markdown(study)
     if study.detection:
         contents["fdir_detection.md"] = detection_markdown(study.spec, study.detection)
+    if study.spec.diagnosis is not None:
+        contents["diagnosis.md"] = diagnosis_markdown(study)
     contents["gate_sensitivity.md"] = gate_sensitivity_markdown(study)
     contents["final_error_profile.md"] = final_error_profile_markdown(study)
     contents["settling_time.md"] = settling_time_markdown(study)
