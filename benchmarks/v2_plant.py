@@ -4,7 +4,7 @@ Run: ``python benchmarks/v2_plant.py [--out benchmarks/results/v2_plant.json] [-
 
 Measures env-steps/s (episodes x steps / seconds, wall clock) of:
 - the fused kernel alone (``FastWheelPlant.step`` under a fixed command) at batch 1, 500, 10 000
-  (and, at 10 000, the serial kernel too: what one core gives);
+  (and, at 10 000, the kernel on one thread too: what one core gives);
 - the fused kernel and the numpy reference (``WheelPlant``) with a cheap PD-like law in the
   loop (scftc-v2's analytic law on the true state: PD + gyroscopic and nominal friction
   feed-forward, nominal pseudo-inverse allocation; numpy, ~20 array operations per step) at the
@@ -161,7 +161,7 @@ def main() -> None:
         }
         ref_steps = STEPS if n == 1 else (100 if n == 500 else 20 if args.quick else 40)
         row["reference_pd"] = rate(WheelPlant, n, ref_steps, law, 1 if n >= 10_000 else repeats)
-        if n >= PARALLEL_MIN_BATCH:  # the serial kernel on the same batch: what one core gives
+        if n >= PARALLEL_MIN_BATCH:  # the kernel on one thread, the same batch: what one core gives
             serial = partial(FastWheelPlant, parallel=False)
             row["serial_kernel_only"] = rate(serial, n, steps, None, repeats)
             row["serial_fast_pd"] = rate(serial, n, steps, law, repeats)

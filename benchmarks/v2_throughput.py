@@ -263,7 +263,7 @@ def main() -> None:
         serial = vector_env_rate(VECTOR_ENVS, 1, serial=True)
         results["vector_env"] = {"num_envs": VECTOR_ENVS, **vector, "serial_kernel": serial}
         print(f"vector env, {VECTOR_ENVS} episodes: {_fmt(vector)}; reset {vector['reset_s']:.2f} s")
-        print(f"vector env, {VECTOR_ENVS} episodes, serial kernel: {_fmt(serial)}")
+        print(f"vector env, {VECTOR_ENVS} episodes, plant on one thread: {_fmt(serial)}")
 
     results["loadavg_1min_at_end"] = load()
     args.out.parent.mkdir(parents=True, exist_ok=True)
