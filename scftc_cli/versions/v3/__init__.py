@@ -32,6 +32,14 @@ VERSION = Version(
             family="reference",
         ),
         ControllerSpec(
+            "pid",
+            "scftc_cli.versions.v3.controllers.pid:PID",
+            "PD + integral on the fused attitude with anti-windup on the mission law, nominal allocation "
+            "(fault-unaware), rods unloading as in pd",
+            artifacts=("params/v3/pid.yaml",),
+            family="reference",
+        ),
+        ControllerSpec(
             "rma_student",
             "scftc_cli.versions.v3.controllers.rma:RMAStudent",
             "RMA: v2's per-wheel GRU estimate of g on the mission law, latched, re-opened on a change",
