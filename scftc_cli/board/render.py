@@ -61,6 +61,16 @@ DIAGNOSIS_HEADERS = (
 )
 
 
+DIAGNOSIS_READING = (
+    "A controller that reports no diagnosis never alarms and never detects. False alarms are counted on "
+    "the actuator cells (a sensor cell repeats its base cell's flight before the onset), with the Wilson "
+    "95 % interval over healthy episodes (as if independent). Detection, isolation (the last report "
+    "names exactly the faulted units) and the right severity are shares of the faulted episodes of every "
+    "cell; the delay is from the onset to the first alarm."
+)
+"""How to read ``DIAGNOSIS_HEADERS`` (the board's diagnosis table and the study's ``diagnosis.md``)."""
+
+
 def diagnosis_cells(d: PooledDiagnosis) -> list[str]:
     """One entry's ``DIAGNOSIS_HEADERS`` cells."""
     low, high = d.false_alarm_interval
@@ -88,11 +98,7 @@ def diagnosis_lines(ranking: Ranking, budget: float) -> list[str]:
         "",
         f"## Diagnosis (sealed draw; false-alarm budget {100 * budget:g} % of healthy episodes)",
         "",
-        "A controller that reports no diagnosis never alarms and never detects. False alarms are counted on "
-        "the actuator cells (a sensor cell repeats its base cell's flight before the onset), with the Wilson "
-        "95 % interval over healthy episodes (as if independent). Detection, isolation (the last report "
-        "names exactly the faulted units) and the right severity are shares of the faulted episodes of every "
-        "cell; the delay is from the onset to the first alarm.",
+        DIAGNOSIS_READING,
         "",
     ]
     headers = ["controller", "sealed settled (ranked)", *DIAGNOSIS_HEADERS, "over budget"]

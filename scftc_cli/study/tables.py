@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from scftc_cli.board.ranking import pooled_diagnosis
-from scftc_cli.board.render import DIAGNOSIS_HEADERS, diagnosis_cells
+from scftc_cli.board.render import DIAGNOSIS_HEADERS, DIAGNOSIS_READING, diagnosis_cells
 from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.render import deff_text, markdown_table, pct, pct_by_fault
 from scftc_cli.scoring import gate_stat
@@ -450,13 +450,10 @@ def diagnosis_markdown(study: Study) -> str:
         f"# SCFTC diagnosis ({report.benchmark_version}, held-out test split)\n\n"
         f"What each controller's health reports said against the truth, on the battery's cells (n = "
         f"{report.n_faults * report.n_seeds} episodes per cell; units: {', '.join(spec.diagnosis.units)}). "
-        "A controller that reports no diagnosis never alarms and never detects. False alarms: episodes "
-        "with an alarm raised in healthy flight (a nominal episode, or before the onset), counted on the "
-        "actuator cells, with the Wilson 95 % interval over those episodes as if independent (the records "
-        "keep no per-fault alarm counts, so read it as a lower bound on the uncertainty); the board flags "
-        f"an entry above {100 * spec.diagnosis.false_alarm_budget:g} %. Detection, isolation (the last "
-        "report names exactly the faulted units) and the right severity are shares of the faulted "
-        "episodes; the delay runs from the onset to the first alarm.\n\n"
+        f"{DIAGNOSIS_READING} A false alarm is an alarm raised in healthy flight (a nominal episode, or "
+        "before the onset); the records keep no per-fault alarm counts, so read its interval as a lower "
+        "bound on the uncertainty. The board flags an entry above "
+        f"{100 * spec.diagnosis.false_alarm_budget:g} %.\n\n"
         f"Regenerate with `{_regenerate(report.benchmark_version)}`.\n\n"
         "## Pooled over every cell\n\n"
         + markdown_table(["controller", *DIAGNOSIS_HEADERS], rows)
