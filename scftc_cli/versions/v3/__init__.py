@@ -40,6 +40,13 @@ VERSION = Version(
             family="reference",
         ),
         ControllerSpec(
+            "rls_dob",
+            "scftc_cli.versions.v3.controllers.rls:RLSDob",
+            "v2's per-wheel RLS on the tachometer torque + disturbance observer, latched, re-opened on a "
+            "change, on the mission law",
+            artifacts=("params/v3/rls_dob.yaml",),
+        ),
+        ControllerSpec(
             "rma_student",
             "scftc_cli.versions.v3.controllers.rma:RMAStudent",
             "RMA: v2's per-wheel GRU estimate of g on the mission law, latched, re-opened on a change",

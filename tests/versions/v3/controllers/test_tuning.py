@@ -6,8 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
 
-from scftc_cli.training import tuning
+from scftc_cli.baselines.checker import check_controller
+from scftc_cli.registry import controller_spec
+from scftc_cli.training import get_trainer, tuning
+from scftc_cli.versions.v3.spec import V3
 from scftc_cli.versions.v3.training.tuning import SPECS
 
 CELLS = {"pid": ("gain", "nominal", "sign+gyro_bias"), "rls_dob": ("gain", "loss", "nominal")}
@@ -39,3 +43,15 @@ def test_the_population_puts_each_candidate_on_its_own_rows():
             column = getattr(params, d.name)
             assert column.shape == (6, 1)
             np.testing.assert_array_equal(column[3 * j : 3 * j + 3, 0], getattr(alone, d.name))
+
+
+@pytest.mark.parametrize("name", ["pid", "rls_dob"])
+def test_the_tuned_ports_are_registered_with_their_committed_params_and_provenance(name):
+    entry = controller_spec(name, V3.version)
+    assert entry.artifacts == (f"params/v3/{name}.yaml",)
+    (path,) = entry.artifact_paths()
+    doc = yaml.safe_load(path.read_text())  # committed: a missing file fails here
+    assert doc["controller"] == name and doc["provenance"]["benchmark_version"] == V3.version
+    assert doc["provenance"]["budget"] == "full" and doc["provenance"]["seed"] == 0
+    assert get_trainer(name, V3.version).__module__ == "scftc_cli.training.tuning"
+    check_controller(entry.make(), benchmark=V3.version, steps=10, classes=("sign",))
