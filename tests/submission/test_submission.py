@@ -31,10 +31,7 @@ from scftc_cli.submission.manifest import (
 from scftc_cli.submission.sandbox import OUTPUT_BYTES, Sandbox
 from scftc_cli.versions.v1.sim.testbed import public_context
 from scftc_cli.versions.v1.spec import V1
-
-needs_sandbox = pytest.mark.skipif(
-    isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())
-)
+from tests.sandbox import needs_sandbox
 
 runner = CliRunner()
 EXAMPLE = Path(__file__).resolve().parents[2] / "submissions" / "example_pd_plus" / "pd_plus.py"

@@ -12,12 +12,9 @@ from typer.testing import CliRunner
 
 from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
-from scftc_cli.submission import isolation
 from scftc_cli.versions.v2.spec import V2
+from tests.sandbox import needs_sandbox
 
-needs_sandbox = pytest.mark.skipif(
-    isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())
-)
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[2]
 V1_EXAMPLE = ROOT / "submissions" / "example_pd_plus" / "pd_plus.py"

@@ -5,17 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 from typer.testing import CliRunner
 
 from scftc_cli.board.ops import open_round
 from scftc_cli.commands.app import app
-from scftc_cli.submission import isolation
 from scftc_cli.versions.v3.spec import V3
+from tests.sandbox import needs_sandbox
 
-needs_sandbox = pytest.mark.skipif(
-    isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())
-)
 runner = CliRunner()
 EXAMPLE = Path(__file__).resolve().parent / "v3" / "mission_pd.py"
 

@@ -18,14 +18,11 @@ from scftc_cli.commands.app import app
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.records import EpisodeDiagnosis
 from scftc_cli.scoring import diagnosis_stats
-from scftc_cli.submission import isolation
 from scftc_cli.versions import get_spec, register, unregister
+from tests.sandbox import needs_sandbox
 from tests.toy_version.diagnosed import NAME, Oracle
 
 runner = CliRunner()
-needs_sandbox = pytest.mark.skipif(
-    isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())
-)
 
 
 @pytest.fixture

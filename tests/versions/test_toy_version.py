@@ -15,14 +15,11 @@ from typer.testing import CliRunner
 
 from scftc_cli.commands.app import app
 from scftc_cli.registry import registry
-from scftc_cli.submission import isolation
 from scftc_cli.versions import get_spec, register, unregister, version_names
+from tests.sandbox import needs_sandbox
 from tests.toy_version import NAME, SUBMISSION_SOURCE
 
 runner = CliRunner()
-needs_sandbox = pytest.mark.skipif(
-    isolation.sandbox_unavailable() is not None, reason=str(isolation.sandbox_unavailable())
-)
 
 
 @pytest.fixture
