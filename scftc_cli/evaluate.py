@@ -19,7 +19,7 @@ from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.registry import controller_spec
 from scftc_cli.scoring import episode_outcomes, score_cell
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.rollout import Rollout, rollout
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
@@ -109,11 +109,82 @@ def evaluate_cell(
     bed = testbed(spec.version)
     episodes = bed.draw(cell.split, cell.fault_class, cell.sensor, n_faults, n_seeds, salt)
     flown = rollout(make(cell), episodes, backend=backend, progress=progress)
-    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, bed.truth(episodes))
+    return _scored(spec, cell, episodes, flown)
+
+
+def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout) -> CellRun:
+    """The cell's record from what its episodes produced."""
+    truth = testbed(spec.version).truth(episodes)
+    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, truth)
     result = score_cell(
         outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
     )
     return CellRun(cell, result, outcomes, episodes)
+
+
+STACK_EPISODES = 10_000
+"""Most episodes a stacked batch holds (``evaluate_stacked``): bounds its memory."""
+
+
+def stacks(spec: BenchmarkSpec, cells: list[Cell], n: int) -> list[list[int]]:
+    """``cells``' indices in the groups that fly as one batch each, ``n`` episodes a cell: cells in
+    order, a group closed when it would pass ``STACK_EPISODES``; where the version's sensors hold
+    one cell's sensor fault, only cells with the same sensor fault share a batch."""
+    per_episode = testbed(spec.version).sensor_fault_per_episode
+    groups: dict[object, list[list[int]]] = {}
+    for i, cell in enumerate(cells):
+        shelf = groups.setdefault(None if per_episode else cell.sensor, [[]])
+        if shelf[-1] and (len(shelf[-1]) + 1) * n > STACK_EPISODES:
+            shelf.append([])
+        shelf[-1].append(i)
+    return sorted((g for shelf in groups.values() for g in shelf), key=lambda g: g[0])
+
+
+class _Scaled(Progress):
+    """Forwards a stacked rollout's steps as ``cells`` steps each (the total counts cells' steps)."""
+
+    def __init__(self, progress: Progress, cells: int) -> None:
+        self.progress, self.cells = progress, cells
+
+    def advance(self, amount: float = 1.0) -> None:
+        self.progress.advance(amount * self.cells)
+
+
+def evaluate_stacked(
+    make: ControllerFactory,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    *,
+    n_faults: int | None = None,
+    n_seeds: int | None = None,
+    backend: str = "numpy",
+    salt: bytes = b"",
+    progress: Progress = NO_PROGRESS,
+    label: str = "",
+) -> list[CellRun]:
+    """``evaluate_cell`` over ``cells``, bit for bit, with the cells' episodes flown as one batch
+    (``stacks``) by one controller: one step of the loop for all of them, the plant's kernels on
+    a batch large enough for every core, the controller's per-step cost paid once.
+
+    Only for controllers whose rows are independent (every built-in: a row's commands depend on
+    that row's readings alone; tests/test_stacking.py checks it, every built-in of every version);
+    a submission flies cell by cell, as the protocol promises it.
+    """
+    bed = testbed(spec.version)
+    n = (spec.n_faults if n_faults is None else n_faults) * (spec.n_seeds if n_seeds is None else n_seeds)
+    runs: dict[int, CellRun] = {}
+    for group in stacks(spec, cells, n):
+        members = [cells[i] for i in group]
+        names = ", ".join(c.label for c in members)
+        progress.describe(f"{label} on {names}" if label else names)
+        parts = [bed.draw(c.split, c.fault_class, c.sensor, n_faults, n_seeds, salt) for c in members]
+        episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
+        flown = rollout(make(members[0]), episodes, backend=backend, progress=_Scaled(progress, len(parts)))
+        start = 0
+        for i, cell, part in zip(group, members, parts, strict=True):
+            runs[i] = _scored(spec, cell, part, flown.subset(slice(start, start + part.n)))
+            start += part.n
+    return [runs[i] for i in range(len(cells))]
 
 
 def evaluate_cells(
@@ -131,6 +202,7 @@ def evaluate_cells(
     ref: ControllerRef | None = None,
 ) -> list[CellRun]:
     """``evaluate_cell`` over ``cells``, in order; ``progress`` is told ``"<label> on <cell>"``.
+    A built-in controller (``ref`` a ``BuiltinRef``) flies them stacked (``evaluate_stacked``).
 
     With a ``runner`` (a Dask cluster) the cells are flown there in chunks by the controller of
     ``ref`` instead, with bit-identical results.
@@ -140,6 +212,18 @@ def evaluate_cells(
             raise UsageError("a cluster run needs a controller reference the workers can rebuild")
         return _evaluate_on_cluster(
             runner, ref, spec, cells, n_faults, n_seeds, backend, salt, progress, label
+        )
+    if isinstance(ref, BuiltinRef):
+        return evaluate_stacked(
+            make,
+            spec,
+            cells,
+            n_faults=n_faults,
+            n_seeds=n_seeds,
+            backend=backend,
+            salt=salt,
+            progress=progress,
+            label=label,
         )
     runs = []
     for cell in cells:

@@ -41,13 +41,17 @@ def unit_norm(v: np.ndarray) -> float:
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-def _take(value: Any, idx: np.ndarray | slice, n: int) -> Any:
+def take_rows(value: Any, idx: np.ndarray | slice, n: int) -> Any:
+    """``value`` with every array that leads with ``n`` (a batch array) cut to the rows ``idx``,
+    through nested dataclasses and dicts; anything else as it is."""
     if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
         return value[idx]
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return dataclasses.replace(
-            value, **{f.name: _take(getattr(value, f.name), idx, n) for f in dataclasses.fields(value)}
+            value, **{f.name: take_rows(getattr(value, f.name), idx, n) for f in dataclasses.fields(value)}
         )
+    if isinstance(value, dict):
+        return {key: take_rows(item, idx, n) for key, item in value.items()}
     return value
 
 
@@ -85,7 +89,7 @@ class Episodes:
 
     def subset(self, idx: np.ndarray | slice) -> Self:
         """The episodes at ``idx`` (every batch array sliced alike)."""
-        return _take(self, idx, self.n)
+        return take_rows(self, idx, self.n)
 
     @classmethod
     def concat(cls, parts: list[Self]) -> Self:

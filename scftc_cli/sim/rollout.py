@@ -13,7 +13,7 @@ import numpy as np
 
 from scftc_cli.errors import ControllerError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
-from scftc_cli.sim.episodes import Episodes
+from scftc_cli.sim.episodes import Episodes, take_rows
 from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within
 from scftc_cli.sim.testbed import Testbed, testbed
 
@@ -66,6 +66,10 @@ class Rollout:
     error_deg: np.ndarray | None = None
     states: dict[str, np.ndarray] = field(default_factory=dict)
     commands: np.ndarray | None = None
+
+    def subset(self, rows: slice) -> Rollout:
+        """What the episodes at ``rows`` produced (every per-episode array cut alike)."""
+        return take_rows(self, rows, len(self.final_error_deg))
 
     @property
     def sigma(self) -> np.ndarray:

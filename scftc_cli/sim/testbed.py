@@ -70,6 +70,9 @@ class Testbed(ABC):
 
     spec: BenchmarkSpec
     plants: ClassVar[Mapping[str, str]]
+    sensor_fault_per_episode: ClassVar[bool] = True
+    """Each episode carries its own sensor fault, so cells with different sensor faults can fly
+    as one batch (``evaluate.evaluate_cells``); ``False`` where the sensors hold one cell's fault."""
 
     def draw(
         self,

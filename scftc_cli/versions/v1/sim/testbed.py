@@ -22,6 +22,7 @@ class RigidBodyTestbed(Testbed):
         "basilisk": "scftc_cli.versions.v1.sim.basilisk:BasiliskPlant",  # BackendUnavailable without bsk
     }
     pinned = staticmethod(pinned_episodes)
+    sensor_fault_per_episode = False  # StarTrackerAndGyro holds the cell's one sensor fault
 
     def sensors(self, episodes: RigidEpisodes) -> Sensors:  # type: ignore[override]
         return StarTrackerAndGyro(episodes)

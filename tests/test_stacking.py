@@ -1,0 +1,86 @@
+"""A built-in controller flies a battery's cells stacked into one batch (``evaluate_stacked``):
+that must give every cell exactly what flying it alone gives, for every built-in of every version,
+or a table would depend on which cells were asked for together."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from scftc_cli.evaluate import STACK_EPISODES, Cell, board_cells, evaluate_cell, evaluate_stacked, stacks
+from scftc_cli.registry import make_controller, registry
+from scftc_cli.sim.rollout import Rollout, rollout
+from scftc_cli.sim.testbed import testbed as bed_for
+from scftc_cli.spec import get_spec
+from scftc_cli.versions import version_names
+
+PAIRS = [(version, name) for version in version_names() for name in sorted(registry(version))]
+
+
+def _some_cells(version: str) -> list[Cell]:
+    """Three actuator cells (first, second, last) and two sensor cells (first, last)."""
+    cells = board_cells(get_spec(version))
+    actuator = [c for c in cells if c.sensor is None]
+    sensor = [c for c in cells if c.sensor is not None]
+    return [actuator[0], actuator[1], actuator[-1], sensor[0], sensor[-1]]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("version", "name"), PAIRS, ids=[f"{v}-{n}" for v, n in PAIRS])
+def test_stacked_cells_score_bit_for_bit_as_cells_flown_alone(version: str, name: str) -> None:
+    spec, cells = get_spec(version), _some_cells(version)
+    make = lambda _cell: make_controller(name, version)  # noqa: E731
+    alone = [evaluate_cell(make, spec, c, n_faults=2, n_seeds=2) for c in cells]
+    stacked = evaluate_stacked(make, spec, cells, n_faults=2, n_seeds=2)
+    for a, s in zip(alone, stacked, strict=True):
+        assert s.cell == a.cell
+        assert s.result == a.result
+        for field in dataclasses.fields(a.outcomes):
+            x, y = getattr(a.outcomes, field.name), getattr(s.outcomes, field.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(y, x, err_msg=f"{a.cell.label}: {field.name}")
+
+
+def _arrays(flown: Rollout) -> dict[str, np.ndarray]:
+    out = {}
+    for field in dataclasses.fields(flown):
+        value = getattr(flown, field.name)
+        if isinstance(value, np.ndarray):
+            out[field.name] = value
+        elif dataclasses.is_dataclass(value):
+            out |= {f"{field.name}.{f.name}": getattr(value, f.name) for f in dataclasses.fields(value)}
+    return out
+
+
+@pytest.mark.slow
+def test_a_stack_large_enough_for_every_core_changes_no_bit() -> None:
+    """The newest version's board cells at 300 episodes each: 5 100 rows, where the fused kernels
+    run on all of numba's threads and the networks multiply large matrices. The first 60 steps of
+    each built-in, stacked against each cell alone."""
+    version = version_names()[-1]
+    spec, bed = get_spec(version), bed_for(version)
+    cells = board_cells(spec)
+    parts = [bed.draw(c.split, c.fault_class, c.sensor, 30, 10) for c in cells]
+    whole = type(parts[0]).concat(parts)
+    assert whole.n >= 5_000
+    for name in sorted(registry(version)):
+        alone = [_arrays(rollout(make_controller(name, version), p, steps=60)) for p in parts]
+        stacked = _arrays(rollout(make_controller(name, version), whole, steps=60))
+        for key, value in stacked.items():
+            joined = np.concatenate([a[key] for a in alone])
+            np.testing.assert_array_equal(value, joined, err_msg=f"{name}: {key}")
+
+
+def test_stacks_keep_order_bound_size_and_respect_cell_wide_sensor_faults() -> None:
+    cells = board_cells(get_spec("scftc-v2"))
+    n = 500
+    groups = stacks(get_spec("scftc-v2"), cells, n)
+    assert [i for g in groups for i in g] == list(range(len(cells)))
+    assert all(len(g) * n <= STACK_EPISODES for g in groups)
+    assert len(groups) == -(-len(cells) * n // STACK_EPISODES)
+    v1 = get_spec("scftc-v1")
+    v1_cells = board_cells(v1)
+    for group in stacks(v1, v1_cells, 4):
+        assert len({v1_cells[i].sensor for i in group}) == 1  # v1's sensors hold one cell's fault
