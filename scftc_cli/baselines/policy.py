@@ -21,6 +21,7 @@ from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.params import committed_weights
 from scftc_cli.errors import ScftcError, UsageError
 from scftc_cli.protocol import Context, Controller
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,8 @@ class PolicyNet:
         advances ``state`` in place."""
         h, c = state
         action = np.empty((x.shape[0], self.w_out.shape[1]))
-        recurrent.policy_step(
+        run_rows(
+            recurrent.policy_step,
             np.ascontiguousarray(x, dtype=np.float64),
             h,
             c,
@@ -95,6 +97,7 @@ class PolicyNet:
             self.b_mlp,
             self.w_out,
             self.b_out,
+            parallel=x.shape[0] >= PARALLEL_MIN_BATCH,
         )
         return action
 

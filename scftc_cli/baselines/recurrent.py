@@ -16,7 +16,8 @@ the CPU or the library build:
   ``tests/baselines/test_inference.py`` checks both against extended precision);
 - no fast-math and no parallel reduction: LLVM then emits IEEE operations as written (no
   reassociation, no contraction into fused multiply-adds), and vectorizes only across outputs,
-  which does not change any single output's operations. ``error_model="numpy"``: a division is
+  which does not change any single output's operations. Threads share out whole rows (chunks of
+  ``CHUNK_ROWS``, through ``sim/rows.run_rows``), so which thread computes a row changes no bit. ``error_model="numpy"``: a division is
   IEEE (no zero check, which would keep the loops from vectorizing).
 
 ``softplus`` keeps libm's ``log1p`` (one call per sequence and step; not CPU-dispatched in glibc
@@ -203,6 +204,9 @@ def tanh_array(x):
 # inputs are folded in per pass so that the partial sums stay in registers for four products.
 
 ROWS = 4
+CHUNK_ROWS = (
+    64  # rows a thread takes at a time (a multiple of ROWS): the kernels' parallel loops run over these
+)
 
 
 @numba.njit(error_model="numpy")
@@ -258,10 +262,12 @@ def affine_rows(w, b, v):
     return out
 
 
-@numba.njit(cache=True, error_model="numpy")
-def student_step(
+@numba.njit(error_model="numpy")
+def _student_rows(
+    todo,
+    lo,
+    hi,
     x,
-    active,
     scale,
     h,
     sums,
@@ -283,20 +289,9 @@ def student_step(
     log_mag_min,
     log_mag_max,
 ):
-    """One step of the RMA student (``training/student.py``'s ``StudentModule``) for the rows of
-    ``x`` ``(B, F)`` where ``active`` ``(B,)`` is set; the other rows (latched axes) are left as they are.
-
-    Updates the GRU state ``h`` ``(B, H)`` and the running sums ``sums`` ``(B, 2)`` (``sum w x y``,
-    ``sum w x^2``) in place and writes ``theta_hat`` into ``theta`` ``(B,)``, with the torch module's
-    operations: ``u = tanh(W_in (x * scale) + b_in)``; GRU with ``r = sigmoid(h_r + i_r)``,
-    ``z = sigmoid(h_z + i_z)``, ``n = tanh(i_n + h_n r)``, ``h' = (h - n) z + n``; head
-    ``(logit, log_mag, w_raw) = W_2 tanh(W_1 h' + b_1) + b_2``; prior ``tanh(logit / 2)
-    e^clamp(log_mag)``; ``wx = (softplus(w_raw) x_valid) x``; ``sxy += wx y``, ``sxx += wx x``;
-    ``theta = (sxy + P prior) / (sxx + P)``.
-    """
+    """``student_step`` for the rows ``todo[lo:hi]``."""
     n_feat = x.shape[1]
     hidden = h.shape[1]
-    todo = np.flatnonzero(active)
     xs = np.zeros((ROWS, n_feat))
     u = np.empty((ROWS, hidden))
     hb = np.zeros((ROWS, hidden))
@@ -304,8 +299,8 @@ def student_step(
     gh = np.empty((ROWS, 3 * hidden))
     t = np.empty((ROWS, hidden))
     out = np.empty((ROWS, 3))
-    for start in range(0, todo.shape[0], ROWS):
-        rows = min(ROWS, todo.shape[0] - start)
+    for start in range(lo, hi, ROWS):
+        rows = min(ROWS, hi - start)
         for k in range(rows):
             row = todo[start + k]
             for j in range(n_feat):
@@ -341,14 +336,79 @@ def student_step(
             theta[row] = (sums[row, 0] + prior_weight * prior) / (sums[row, 1] + prior_weight)
 
 
-@numba.njit(cache=True, error_model="numpy")
-def policy_step(x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_out):
-    """One step of the e2e actor (``RecurrentPolicy``, ``training/policy.py``) for every row of the
-    scaled input ``x`` ``(B, 9)``: LSTM (gates ``(W_hh h + b_hh) + (W_ih x + b_ih)``, split into
-    input, forget, cell and output gates; ``c' = f c + i g``, ``h' = o tanh(c')``), a tanh layer per
-    entry of the tuples ``w_mlp``, ``b_mlp``, then the linear action head. Updates ``h`` and ``c``
-    ``(B, H)`` in place and writes the unclipped mean action into ``action`` ``(B, 3)``."""
-    n_rows, n_in = x.shape
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def student_step(
+    x,
+    active,
+    scale,
+    h,
+    sums,
+    theta,
+    w_in,
+    b_in,
+    w_ih,
+    b_ih,
+    w_hh,
+    b_hh,
+    w_1,
+    b_1,
+    w_2,
+    b_2,
+    col_x,
+    col_y,
+    col_valid,
+    prior_weight,
+    log_mag_min,
+    log_mag_max,
+):
+    """One step of the RMA student (``training/student.py``'s ``StudentModule``) for the rows of
+    ``x`` ``(B, F)`` where ``active`` ``(B,)`` is set; the other rows (latched axes) are left as they are.
+
+    Updates the GRU state ``h`` ``(B, H)`` and the running sums ``sums`` ``(B, 2)`` (``sum w x y``,
+    ``sum w x^2``) in place and writes ``theta_hat`` into ``theta`` ``(B,)``, with the torch module's
+    operations: ``u = tanh(W_in (x * scale) + b_in)``; GRU with ``r = sigmoid(h_r + i_r)``,
+    ``z = sigmoid(h_z + i_z)``, ``n = tanh(i_n + h_n r)``, ``h' = (h - n) z + n``; head
+    ``(logit, log_mag, w_raw) = W_2 tanh(W_1 h' + b_1) + b_2``; prior ``tanh(logit / 2)
+    e^clamp(log_mag)``; ``wx = (softplus(w_raw) x_valid) x``; ``sxy += wx y``, ``sxx += wx x``;
+    ``theta = (sxy + P prior) / (sxx + P)``.
+    """
+    todo = np.flatnonzero(active)
+    chunks = (todo.shape[0] + CHUNK_ROWS - 1) // CHUNK_ROWS
+    for chunk in numba.prange(chunks):
+        lo = chunk * CHUNK_ROWS
+        hi = min(lo + CHUNK_ROWS, todo.shape[0])
+        _student_rows(
+            todo,
+            lo,
+            hi,
+            x,
+            scale,
+            h,
+            sums,
+            theta,
+            w_in,
+            b_in,
+            w_ih,
+            b_ih,
+            w_hh,
+            b_hh,
+            w_1,
+            b_1,
+            w_2,
+            b_2,
+            col_x,
+            col_y,
+            col_valid,
+            prior_weight,
+            log_mag_min,
+            log_mag_max,
+        )
+
+
+@numba.njit(error_model="numpy")
+def _policy_rows(lo, hi, x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_out):
+    """``policy_step`` for the rows ``lo..hi-1``."""
+    n_in = x.shape[1]
     hidden = h.shape[1]
     n_act = w_out.shape[1]
     width = hidden
@@ -362,8 +422,8 @@ def policy_step(x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_
     a = np.empty((ROWS, width))
     y = np.empty((ROWS, width))
     out = np.empty((ROWS, n_act))
-    for start in range(0, n_rows, ROWS):
-        rows = min(ROWS, n_rows - start)
+    for start in range(lo, hi, ROWS):
+        rows = min(ROWS, hi - start)
         for k in range(rows):
             for j in range(n_in):
                 xb[k, j] = x[start + k, j]
@@ -396,3 +456,32 @@ def policy_step(x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_
                 c[start + k, i] = cb[k, i]
             for i in range(n_act):
                 action[start + k, i] = out[k, i]
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def policy_step(x, h, c, action, w_ih, b_ih, w_hh, b_hh, w_mlp, b_mlp, w_out, b_out):
+    """One step of the e2e actor (``RecurrentPolicy``, ``training/policy.py``) for every row of the
+    scaled input ``x`` ``(B, 9)``: LSTM (gates ``(W_hh h + b_hh) + (W_ih x + b_ih)``, split into
+    input, forget, cell and output gates; ``c' = f c + i g``, ``h' = o tanh(c')``), a tanh layer per
+    entry of the tuples ``w_mlp``, ``b_mlp``, then the linear action head. Updates ``h`` and ``c``
+    ``(B, H)`` in place and writes the unclipped mean action into ``action`` ``(B, 3)``."""
+    n_rows = x.shape[0]
+    chunks = (n_rows + CHUNK_ROWS - 1) // CHUNK_ROWS
+    for chunk in numba.prange(chunks):
+        lo = chunk * CHUNK_ROWS
+        _policy_rows(
+            lo,
+            min(lo + CHUNK_ROWS, n_rows),
+            x,
+            h,
+            c,
+            action,
+            w_ih,
+            b_ih,
+            w_hh,
+            b_hh,
+            w_mlp,
+            b_mlp,
+            w_out,
+            b_out,
+        )

@@ -26,6 +26,7 @@ import numpy as np
 
 from scftc_cli.baselines import recurrent
 from scftc_cli.errors import ScftcError
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 
 
 @dataclass(frozen=True)
@@ -145,7 +146,8 @@ class StudentNet:
         if restart is not None and restart.any():
             state.h[restart] = 0.0
             state.sums[restart] = 0.0
-        recurrent.student_step(
+        run_rows(
+            recurrent.student_step,
             np.ascontiguousarray(x, dtype=np.float64),
             np.ascontiguousarray(active, dtype=np.bool_),
             self.scale,
@@ -166,6 +168,7 @@ class StudentNet:
             self.prior_weight,
             self.log_mag_min,
             self.log_mag_max,
+            parallel=x.shape[0] >= PARALLEL_MIN_BATCH,
         )
         return state.estimate
 
