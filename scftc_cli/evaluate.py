@@ -24,7 +24,7 @@ from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
 if TYPE_CHECKING:
-    from scftc_cli.distributed.runner import ChunkTask, Runner
+    from scftc_cli.distributed.runner import ChunkTask, Runner, StackTask
 
 
 @dataclass(frozen=True)
@@ -126,15 +126,15 @@ STACK_EPISODES = 10_000
 """Most episodes a stacked batch holds (``evaluate_stacked``): bounds its memory."""
 
 
-def stacks(spec: BenchmarkSpec, cells: list[Cell], n: int) -> list[list[int]]:
+def stacks(spec: BenchmarkSpec, cells: list[Cell], n: int, limit: int = STACK_EPISODES) -> list[list[int]]:
     """``cells``' indices in the groups that fly as one batch each, ``n`` episodes a cell: cells in
-    order, a group closed when it would pass ``STACK_EPISODES``; where the version's sensors hold
+    order, a group closed when it would pass ``limit`` episodes; where the version's sensors hold
     one cell's sensor fault, only cells with the same sensor fault share a batch."""
     per_episode = testbed(spec.version).sensor_fault_per_episode
     groups: dict[object, list[list[int]]] = {}
     for i, cell in enumerate(cells):
         shelf = groups.setdefault(None if per_episode else cell.sensor, [[]])
-        if shelf[-1] and (len(shelf[-1]) + 1) * n > STACK_EPISODES:
+        if shelf[-1] and (len(shelf[-1]) + 1) * n > limit:
             shelf.append([])
         shelf[-1].append(i)
     return sorted((g for shelf in groups.values() for g in shelf), key=lambda g: g[0])
@@ -255,20 +255,22 @@ def _evaluate_on_cluster(
     progress: Progress,
     label: str,
 ) -> list[CellRun]:
-    """Every cell split into chunks, all chunks mapped over the cluster at once, then each cell's
-    chunks concatenated in order and scored here."""
-    from scftc_cli.distributed.runner import run_chunk
+    """Every cell split into chunks (a built-in's chunks stacked, ``cluster_tasks``), all mapped
+    over the cluster at once, then each cell's chunks concatenated in order and scored here."""
+    from scftc_cli.distributed.runner import run_stack
 
     faults = spec.n_faults if n_faults is None else n_faults
     seeds = spec.n_seeds if n_seeds is None else n_seeds
     n = faults * seeds
-    tasks = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
-    progress.describe(f"{label} on {len(cells)} cell(s), {len(tasks)} chunk(s) on the cluster")
-    outcomes = runner.map(run_chunk, tasks, progress, weight=lambda t: spec.steps * t.steps / n)
-    per_cell = len(tasks) // len(cells)
+    tasks = cluster_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt, workers=runner.workers())
+    progress.describe(f"{label} on {len(cells)} cell(s), {len(tasks)} task(s) on the cluster")
+    flown = runner.map(run_stack, tasks, progress, weight=lambda t: spec.steps * t.steps / n)
+    by_chunk = dict(zip((p for t in tasks for p in t.parts), (o for out in flown for o in out), strict=True))
+    chunked = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
+    per_cell = len(chunked) // len(cells)
     runs = []
     for i, cell in enumerate(cells):
-        merged = EpisodeOutcomes.concat(outcomes[i * per_cell : (i + 1) * per_cell])
+        merged = EpisodeOutcomes.concat([by_chunk[c] for c in chunked[i * per_cell : (i + 1) * per_cell]])
         result = score_cell(
             merged, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
         )
@@ -298,15 +300,40 @@ def chunk_tasks(
     ]
 
 
+def cluster_tasks(
+    ref: ControllerRef,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    n_faults: int | None = None,
+    n_seeds: int | None = None,
+    backend: str = "numpy",
+    salt: bytes = b"",
+    *,
+    workers: int = 1,
+) -> list[StackTask]:
+    """``chunk_tasks`` as the cluster flies them: a built-in's whole-cell chunks stacked into
+    about one batch per worker (``stacks``, at most ``STACK_EPISODES`` each), so that each worker
+    flies one large batch; anything else one chunk a task."""
+    from scftc_cli.distributed.runner import StackTask
+
+    chunked = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
+    if not isinstance(ref, BuiltinRef) or len(chunked) != len(cells):
+        return [StackTask((c,)) for c in chunked]
+    n = chunked[0].steps
+    share = -(-len(cells) // max(1, workers)) * n  # the cells spread evenly over the workers
+    groups = stacks(spec, cells, n, min(share, STACK_EPISODES))
+    return [StackTask(tuple(chunked[i] for i in group)) for group in groups]
+
+
 def prefetch_cells(
     runner: Runner, ref: ControllerRef, spec: BenchmarkSpec, cells: list[Cell], **draw: Any
 ) -> None:
-    """Queue on ``runner`` the chunks a later ``evaluate_cells(..., runner=runner, ref=ref)`` of
+    """Queue on ``runner`` the tasks a later ``evaluate_cells(..., runner=runner, ref=ref)`` of
     ``cells`` with the same ``draw`` options (``n_faults``, ``n_seeds``, ``backend``, ``salt``)
     will map (``Runner.prefetch``)."""
-    from scftc_cli.distributed.runner import run_chunk
+    from scftc_cli.distributed.runner import run_stack
 
-    runner.prefetch(run_chunk, chunk_tasks(ref, spec, cells, **draw))
+    runner.prefetch(run_stack, cluster_tasks(ref, spec, cells, **draw, workers=runner.workers()))
 
 
 def planned_steps(spec: BenchmarkSpec, cells: list[Cell]) -> int:

@@ -17,8 +17,9 @@ the CPU or the library build:
 - no fast-math and no parallel reduction: LLVM then emits IEEE operations as written (no
   reassociation, no contraction into fused multiply-adds), and vectorizes only across outputs,
   which does not change any single output's operations. Threads share out whole rows (chunks of
-  ``CHUNK_ROWS``, through ``sim/rows.run_rows``), so which thread computes a row changes no bit. ``error_model="numpy"``: a division is
-  IEEE (no zero check, which would keep the loops from vectorizing).
+  ``CHUNK_ROWS``, through ``sim/rows.run_rows``), so which thread computes a row changes no bit.
+  ``error_model="numpy"``: a division is IEEE (no zero check, which would keep the loops from
+  vectorizing).
 
 ``softplus`` keeps libm's ``log1p`` (one call per sequence and step; not CPU-dispatched in glibc
 2.36). ``tests/baselines/test_inference.py`` pins the bits of both kernels on fixed inputs. Torch

@@ -50,6 +50,12 @@ class Scoring:
     progress: Progress = NO_PROGRESS
     backend: str = BACKEND
     runner: Runner | None = None  # a Dask cluster to fly the cells on
+    cells: tuple[Cell, ...] | None = None  # a sample of the board's cells (verify --sample); None: all
+
+    @property
+    def flown_cells(self) -> list[Cell]:
+        """The cells an entry is flown on: the board's (``evaluate.board_cells``), or the sample."""
+        return board_cells(self.spec) if self.cells is None else list(self.cells)
 
     @property
     def faults(self) -> int:
@@ -79,7 +85,7 @@ Flown = dict[str, list[CellResult]]  # draw name -> the cells' results
 
 def steps_per_entry(scoring: Scoring, draws: int = 2) -> int:
     """Simulated steps of scoring one entry on ``draws`` draws (a progress bar's total)."""
-    return len(board_cells(scoring.spec)) * draws * scoring.spec.steps
+    return len(scoring.flown_cells) * draws * scoring.spec.steps
 
 
 def _score(
@@ -90,7 +96,7 @@ def _score(
     label: str,
     cells: list[Cell] | None = None,
 ) -> Flown:
-    cells = board_cells(scoring.spec) if cells is None else cells
+    cells = scoring.flown_cells if cells is None else cells
     return {
         draw: [
             run.result
@@ -140,7 +146,7 @@ def prefetch(ref: ControllerRef, scoring: Scoring, draws: Draws) -> None:
         return
     for salt in draws.values():
         prefetch_cells(
-            scoring.runner, ref, scoring.spec, board_cells(scoring.spec), n_faults=scoring.faults,
+            scoring.runner, ref, scoring.spec, scoring.flown_cells, n_faults=scoring.faults,
             n_seeds=scoring.seeds, backend=scoring.backend, salt=salt,
         )  # fmt: skip
 
@@ -205,7 +211,7 @@ def fly_submission(
 ) -> tuple[list[CellResult], list[str]]:
     """One draw's cells flown by a submission in one fresh sandbox: the results and each cell's
     command digest. The process is told the cell it flies, never the draw, and never a salt."""
-    cells = board_cells(scoring.spec) if cells is None else cells
+    cells = scoring.flown_cells if cells is None else cells
     ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
     local = replace(scoring, runner=None)  # the digests are taken here, so the flight is too
     with _sandbox(sub, local, deadline) as box:

@@ -177,6 +177,19 @@ def verify_command(
             show_default=False,
         ),
     ] = None,
+    sample: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Re-fly only this many of each entry's cells (both draws), a spot check; the round "
+            "chain is still checked whole [default: every cell].",
+            show_default=False,
+        ),
+    ] = None,
+    sample_key: Annotated[
+        str,
+        typer.Option(help="Text that picks the sampled cells (CI passes the commit): same key, same cells."),
+    ] = "",
     step_timeout: Annotated[float, typer.Option(hidden=True, min=0.01)] = SandboxLimits().step_timeout_s,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
@@ -185,13 +198,16 @@ def verify_command(
     it, the salt derives from it), then re-fly every entry on its public draw and its sealed salt;
     exit 1 naming every entry that fails, with the fix that fits it.
 
-    Built-ins come from the registry, submissions from submissions/ (found by sha256).
+    Built-ins come from the registry, submissions from submissions/ (found by sha256). With
+    --sample N only N cells of each entry are re-flown (chosen by --sample-key and the entry's
+    name): a spot check, not a proof.
     """
     from scftc_cli.board.flights import Scoring
     from scftc_cli.board.store import read_board
     from scftc_cli.board.verify import verify, verify_steps
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
+    from scftc_cli.evaluate import board_cells
     from scftc_cli.spec import get_spec
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark, writing=False)
@@ -217,7 +233,7 @@ def verify_command(
 
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar(f"verifying {board_path}", verify_steps(board, scoring)) as progress,
+        progress_bar(f"verifying {board_path}", verify_steps(board, scoring, sample)) as progress,
     ):
         report = verify(
             board_path,
@@ -225,6 +241,8 @@ def verify_command(
             submissions,
             on_entry=on_entry,
             base=trusted,
+            sample=sample,
+            sample_key=sample_key,
         )
     for problem in report.board_problems:
         stderr.print(f"[red]not an extension of {escape(str(base))}:[/red] {escape(problem)}", soft_wrap=True)
@@ -239,9 +257,15 @@ def verify_command(
     if not report.ok:
         names = ", ".join(report.problems) or "its rounds or history"
         raise LeaderboardError(f"{board_path} does not hold for {names} (details above)")
+    cells = len(board_cells(spec))
+    spot = (
+        f"; spot check: {sample} of {cells} cells per entry re-flown (key {sample_key!r})"
+        if sample is not None and sample < cells
+        else ""
+    )
     typer.echo(
         f"verified {report.checked} entries of {board_path} (version {board.version}, "
-        f"{len(board.rounds)} rounds) in {elapsed:.0f} s"
+        f"{len(board.rounds)} rounds) in {elapsed:.0f} s{spot}"
     )
 
 

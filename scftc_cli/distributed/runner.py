@@ -1,6 +1,7 @@
 """Chunks of cells, mapped over a Dask cluster.
 
-The unit of work is a slice of one cell's episodes (``ChunkTask``): a worker draws exactly that
+The unit of work is a slice of one cell's episodes (``ChunkTask``), or a built-in's whole cells
+stacked into one batch (``StackTask``, the chunks of ``evaluate.cluster_tasks``): a worker draws exactly that
 slice (every episode has its own keyed streams, so it equals that slice of the whole cell), flies
 the controller it rebuilds from a reference, and returns the per-episode outcomes. The parent
 concatenates the slices in order and scores the cell, so the result is bit-identical to the
@@ -73,6 +74,44 @@ def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
         return episode_outcomes(flown, bed.spec.gates, episodes.fault_index, bed.truth(episodes))
     finally:
         cleanup()
+
+
+@dataclass(frozen=True)
+class StackTask:
+    """Chunks of several cells flown as one batch by one controller (a built-in's: its rows are
+    independent, so each chunk comes out as if flown alone; ``evaluate.evaluate_stacked``)."""
+
+    parts: tuple[ChunkTask, ...]
+
+    @property
+    def steps(self) -> int:
+        """Simulated steps in units of whole-cell steps (the parts' fractions summed)."""
+        return sum(part.steps for part in self.parts)
+
+
+def run_stack(task: StackTask) -> tuple[EpisodeOutcomes, ...]:
+    """Fly a stack's chunks as one batch; each chunk's outcomes (runs on a worker, or in process)."""
+    from scftc_cli.scoring import episode_outcomes
+    from scftc_cli.sim.rollout import rollout
+    from scftc_cli.sim.testbed import testbed
+
+    first = task.parts[0]
+    bed = testbed(first.benchmark)
+    parts = [
+        bed.draw(p.split, p.fault_class, p.sensor, p.n_faults, p.n_seeds, p.salt, p.start, p.stop)
+        for p in task.parts
+    ]
+    make, cleanup = first.ref.factory()
+    try:
+        flown = rollout(make(), type(parts[0]).concat(parts), backend=first.backend)
+    finally:
+        cleanup()
+    out, start = [], 0
+    for part in parts:
+        rows = flown.subset(slice(start, start + part.n))
+        out.append(episode_outcomes(rows, bed.spec.gates, part.fault_index, bed.truth(part)))
+        start += part.n
+    return tuple(out)
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:

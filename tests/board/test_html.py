@@ -31,6 +31,7 @@ from scftc_cli.commands.app import app
 from scftc_cli.spec import V1, get_spec
 from scftc_cli.statistics import PROFILE_TAUS_DEG, pooled_profile
 from scftc_cli.submission.manifest import parse_manifest
+from scftc_cli.versions import published_names
 from tests.board.test_board import board_of, entry, ks, round_one
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
 runner = CliRunner()
 CHROMIUM, DRIVER = shutil.which("chromium"), shutil.which("chromedriver")
 WINDOW = (1400, 900)
-COMMITTED = ("scftc-v1", "scftc-v2")
+COMMITTED = published_names()  # every committed board
 HOSTILE = {
     "description": '<script>alert("x")</script><img src=x onerror=alert(1)> & "quotes" <b>bold</b>',
     "authors": ["<i>Mallory</i>", "Eve & Co </td></tr></table>"],
@@ -138,7 +139,7 @@ def rich_board() -> Leaderboard:
 
 @functools.cache
 def committed_page() -> str:
-    """The page for both committed boards (what ``scftc leaderboard --format html`` writes)."""
+    """The page for every committed board (what ``scftc leaderboard --format html`` writes)."""
     return board_html([read_board(default_board_path(v), v) for v in COMMITTED])
 
 
@@ -303,7 +304,7 @@ def test_a_real_browser_shows_ranks_ties_text_and_sorts(driver: WebDriver, tmp_p
 
 @pytest.mark.browser
 @browser
-def test_both_committed_boards_fit_a_1400_px_window(driver: WebDriver, tmp_path: Path):
+def test_every_committed_board_fits_a_1400_px_window(driver: WebDriver, tmp_path: Path):
     from selenium.webdriver.common.by import By
 
     load(driver, tmp_path, committed_page())

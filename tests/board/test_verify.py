@@ -20,6 +20,7 @@ from scftc_cli.board.verify import compare_cells, verify
 from scftc_cli.commands.app import app
 from scftc_cli.evaluate import Cell, evaluate_cell
 from scftc_cli.registry import make_controller, registry
+from scftc_cli.versions import published_names
 from scftc_cli.versions.v1.spec import V1
 
 runner = CliRunner()
@@ -99,6 +100,47 @@ def test_verify_passes_then_fails_after_any_hand_edit(board: Path, small_registr
     assert "edited by hand" in err
 
 
+@pytest.mark.slow
+def test_a_sampled_verify_re_flies_only_its_cells_and_says_it_is_a_spot_check(
+    board: Path, small_registry: None, monkeypatch: pytest.MonkeyPatch
+):
+    scoring = Scoring(V1)
+    picks = {key: verifying.sampled_cells(scoring, "teacher", 2, key) for key in ("a", "b", "c", "d")}
+    assert all(p is not None and len(p) == 2 for p in picks.values())
+    assert len(set(picks.values())) > 1  # another key, other cells
+    assert verifying.sampled_cells(scoring, "teacher", 2, "a") == picks["a"]  # same key, same cells
+    flown: list[str] = []
+    real = verifying.score_builtin
+
+    def spy(info, scoring, draws):
+        flown.extend(c.label for c in scoring.flown_cells)
+        return real(info, scoring, draws)
+
+    monkeypatch.setattr(verifying, "score_builtin", spy)
+    result = runner.invoke(
+        app, ["leaderboard", "verify", "--leaderboard", str(board), "--sample", "2", "--sample-key", "a"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "spot check: 2 of" in result.stdout and "key 'a'" in result.stdout
+    teacher = [c.label for c in picks["a"]]  # type: ignore[union-attr]
+    assert flown[2:] == teacher and len(flown) == 4
+    # an edit on a sampled cell is caught; one on a cell outside the sample is not (a spot check)
+    doc = json.loads(board.read_text())
+    first = picks["a"][0]  # type: ignore[index]
+    cells = doc["entries"][1]["sealed"]
+    sampled = {(c.fault_class, c.sensor) for c in picks["a"]}  # type: ignore[union-attr]
+    inside = next(
+        i for i, c in enumerate(cells) if (c["class"], c["sensor"]) == (first.fault_class, first.sensor)
+    )
+    outside = next(i for i, c in enumerate(cells) if (c["class"], c["sensor"]) not in sampled)
+    cells[outside]["final_error_deg"]["median"] = 0.5
+    board.write_text(json.dumps(doc, indent=1))
+    assert verify(board, Scoring(V1), sample=2, sample_key="a").problems == {}
+    cells[inside]["final_error_deg"]["median"] = 0.5
+    board.write_text(json.dumps(doc, indent=1))
+    assert list(verify(board, Scoring(V1), sample=2, sample_key="a").problems) == ["teacher"]
+
+
 def test_verify_names_a_built_in_whose_artifacts_changed(
     board: Path, small_registry: None, monkeypatch: pytest.MonkeyPatch
 ):
@@ -160,10 +202,11 @@ def test_committed_board_validates_against_its_schema():
     jsonschema.validate(json.loads(COMMITTED.read_text()), schema)
 
 
-def test_committed_board_holds_the_whole_battery_on_sealed_draws():
-    board = store.read_board(COMMITTED, "scftc-v1")
+@pytest.mark.parametrize("version", published_names())
+def test_committed_board_holds_the_whole_battery_on_sealed_draws(version: str):
+    board = store.read_board(ROOT / "leaderboard" / f"{version}.json", version)
     built_in = {e.name: e for e in board.entries if e.kind == "builtin"}
-    battery = registry()
+    battery = registry(version)
     assert set(built_in) == set(battery), "run `scftc leaderboard rebuild`"
     assert all(e.status == "sealed" for e in board.entries)  # only round-sealed entries
     salts = {e.sealed_salt for e in board.entries}

@@ -97,3 +97,45 @@ def test_compare_takes_a_submission_of_the_toy(toy: str, tmp_path: Path) -> None
     source = tmp_path / "toy_probe.py"
     source.write_text(SUBMISSION_SOURCE)
     assert "toy_probe vs teacher" in _ok("compare", str(source), "teacher", "--benchmark", toy)
+
+
+@pytest.fixture
+def draft_toy() -> Iterator[str]:
+    """The toy registered as a draft (``Version.draft``): still being calibrated, no board."""
+    import dataclasses
+
+    from tests.toy_version import VERSION
+
+    register(NAME, dataclasses.replace(VERSION, draft=True))
+    try:
+        yield NAME
+    finally:
+        unregister(NAME)
+
+
+def test_a_draft_version_is_registered_but_not_published(draft_toy: str) -> None:
+    from scftc_cli.versions import get_version, published_names
+
+    assert draft_toy in version_names() and get_version(draft_toy).draft
+    assert draft_toy not in published_names() and published_names()[:3] == (
+        "scftc-v1",
+        "scftc-v2",
+        "scftc-v3",
+    )
+    makefile = (Path(__file__).resolve().parents[2] / "Makefile").read_text()
+    assert "published_names" in makefile and "print(*version_names())" not in makefile
+
+
+def test_a_submission_to_a_draft_version_is_refused_a_board(draft_toy: str, tmp_path: Path) -> None:
+    from scftc_cli.board.ops import land
+
+    path = tmp_path / "toy_probe.py"
+    path.write_text(SUBMISSION_SOURCE)
+    board = tmp_path / f"{draft_toy}.json"
+
+    def never(_version: str) -> None:
+        raise AssertionError("a draft is never scored for a board")
+
+    report = land([path], never, lambda _v: board)  # type: ignore[arg-type]
+    assert str(path) in report.rejected and "draft" in report.rejected[str(path)]
+    assert not board.exists()

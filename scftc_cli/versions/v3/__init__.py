@@ -1,10 +1,10 @@
-"""``scftc-v3``: the agile track (docs/benchmark-v3.md), one folder, a draft.
+"""``scftc-v3``: the agile track (docs/benchmark-v3.md), one folder.
 
 ``spec.py`` holds its numbers, ``sim/`` its simulator (seeded draws of faults, orbits and missions;
 the plant in orbit on three backends; v2's sensors plus a magnetometer; the mission's windows and
 the diagnosis truth), ``controllers/`` its calibration battery. ``VERSION`` below is what the
-layers above ask of it (``scftc_cli/versions/__init__.py``). It is marked a draft: it has no board
-yet, so the loops over published versions (boards, ``make reproduce``) leave it out.
+layers above ask of it (``scftc_cli/versions/__init__.py``). Published: its board is
+``leaderboard/scftc-v3.json``, and every number here is part of the version.
 """
 
 from __future__ import annotations
@@ -117,5 +117,4 @@ VERSION = Version(
     ),
     definition=("docs/benchmark-v3.md", "## 9. The spec as data"),
     alias="V3",
-    draft=True,
 )

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim import testbed as testbeds
-from scftc_cli.versions import get_version, published_names, version_names
 from scftc_cli.versions.v3.controllers.analytic import PD
 from scftc_cli.versions.v3.sim.faults import MAX_MISSION_DRAWS, feasible, pinned_episodes, sample_fault
 from scftc_cli.versions.v3.sim.mission import MissionFastPlant, MissionReferencePlant, target_error
@@ -261,37 +260,3 @@ def test_the_context_tells_the_rods_the_orbit_and_the_units_and_crosses_the_wire
     np.testing.assert_array_equal(back.orbit.inclination_rad, context.orbit.inclination_rad)
     assert back.sensors.magnetometer_noise_t == V3.sensors.magnetometer_noise_t
     assert BED.context(e, True).fault.truth.codes.shape == (2, 12)
-
-
-def test_a_draft_version_is_registered_but_not_published():
-    assert "scftc-v3" in version_names() and get_version("scftc-v3").draft
-    assert "scftc-v3" not in published_names() and published_names()[:2] == ("scftc-v1", "scftc-v2")
-    from pathlib import Path
-
-    makefile = (Path(__file__).resolve().parents[3] / "Makefile").read_text()
-    assert "published_names" in makefile and "print(*version_names())" not in makefile
-
-
-def test_a_submission_to_a_draft_version_is_refused_a_board(tmp_path):
-    from scftc_cli.board.ops import land
-
-    path = tmp_path / "v3_entry.py"
-    path.write_text(
-        "import numpy as np\n\n"
-        "SUBMISSION = {'name': 'v3_entry', 'version': '1.0.0', 'authors': ['a tester'],\n"
-        "              'description': 'holds still', 'entry': 'Still', 'license': 'MIT',\n"
-        "              'benchmark': 'scftc-v3'}\n\n\n"
-        "class Still:\n"
-        "    def reset(self, n, context):\n"
-        "        self.n = n\n\n"
-        "    def act(self, obs):\n"
-        "        return np.zeros((self.n, 7))\n"
-    )
-    board = tmp_path / "scftc-v3.json"
-
-    def never(_version):
-        raise AssertionError("a draft is never scored for a board")
-
-    report = land([path], never, lambda _v: board)
-    assert str(path) in report.rejected and "draft" in report.rejected[str(path)]
-    assert not board.exists()
