@@ -13,7 +13,7 @@ from scftc_cli.versions.v3.spec import V3
 from tests.sandbox import needs_sandbox
 
 runner = CliRunner()
-EXAMPLE = Path(__file__).resolve().parent / "v3" / "mission_pd.py"
+EXAMPLE = Path(__file__).resolve().parents[2] / "submissions" / "example_v3_mission_pi" / "mission_pi.py"
 
 
 @needs_sandbox
