@@ -80,6 +80,12 @@ th.sortable .h::after { content: " \\2195"; color: #9aa3b2; font-size: 11px; }
 th[aria-sort="ascending"] .h::after { content: " \\2191"; color: var(--accent); }
 th[aria-sort="descending"] .h::after { content: " \\2193"; color: var(--accent); }
 th.heat-head { text-align: center; width: 74px; }
+table.many th.heat-head { width: 44px; padding: 6px 2px; vertical-align: bottom; }
+table.many th.heat-head .h, table.many th.heat-head .sub { display: inline-block; writing-mode: vertical-rl;
+  transform: rotate(180deg); }
+table.many td.heat { width: 44px; padding: 6px 2px; font-size: 12px; }
+table.many td.controller { min-width: 180px; }
+table.wrap-heads th .h { white-space: normal; }
 td.num, .num { font-variant-numeric: tabular-nums; white-space: nowrap; }
 .ci { color: var(--muted); font-size: 11.5px; }
 .big { font-weight: 700; font-size: 15px; }
@@ -446,7 +452,16 @@ def _ranked_table(rows: list[Ranked], spec: BenchmarkSpec, ranking: Ranking, *, 
         )
     if not rows:
         bodies.append(f'<tbody><tr><td colspan="{len(headers)}">(none yet)</td></tr></tbody>')
-    return f'<table class="board-table sortable" id="{table_id}">{_heads(headers)}{"".join(bodies)}</table>'
+    return f'<table class="{_table_class(spec)}" id="{table_id}">{_heads(headers)}{"".join(bodies)}</table>'
+
+
+MANY_CLASSES = 8
+"""Above this many fault classes a board's class columns turn their headings upright (``many``),
+so that every column still fits a 1400 px window."""
+
+
+def _table_class(spec: BenchmarkSpec) -> str:
+    return "board-table sortable" + (" many" if len(spec.fault_classes) > MANY_CLASSES else "")
 
 
 def _sensor_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
@@ -501,7 +516,7 @@ def _diagnosis_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
     if not bodies:
         bodies.append(f'<tbody><tr><td colspan="{len(headers)}">(no entries yet)</td></tr></tbody>')
     return (
-        f'<table class="sortable" id="{esc(spec.version)}-diagnosis-table">{_heads(headers)}'
+        f'<table class="sortable wrap-heads" id="{esc(spec.version)}-diagnosis-table">{_heads(headers)}'
         f"{''.join(bodies)}</table>"
     )
 
@@ -534,7 +549,7 @@ def _pending_table(board: Leaderboard, ranking: Ranking, spec: BenchmarkSpec) ->
             f"{_details(e, spec, ranked, len(headers))}</tbody>"
         )
     return (
-        f'<table class="board-table sortable" id="{version}-pending-table">{_heads(headers)}'
+        f'<table class="{_table_class(spec)}" id="{version}-pending-table">{_heads(headers)}'
         f"{''.join(bodies)}</table>"
     )
 
