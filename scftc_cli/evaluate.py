@@ -19,7 +19,7 @@ from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.registry import controller_spec
 from scftc_cli.scoring import episode_outcomes, score_cell
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.sim.rollout import Rollout, rollout
+from scftc_cli.sim.rollout import Rollout, rollout, rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
@@ -178,12 +178,10 @@ def evaluate_stacked(
         names = ", ".join(c.label for c in members)
         progress.describe(f"{label} on {names}" if label else names)
         parts = [bed.draw(c.split, c.fault_class, c.sensor, n_faults, n_seeds, salt) for c in members]
-        episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
-        flown = rollout(make(members[0]), episodes, backend=backend, progress=_Scaled(progress, len(parts)))
-        start = 0
-        for i, cell, part in zip(group, members, parts, strict=True):
-            runs[i] = _scored(spec, cell, part, flown.subset(slice(start, start + part.n)))
-            start += part.n
+        scaled = _Scaled(progress, len(parts))
+        flown = rollout_parts(make(members[0]), parts, backend=backend, progress=scaled)
+        for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
+            runs[i] = _scored(spec, cell, part, rows)
     return [runs[i] for i in range(len(cells))]
 
 

@@ -52,28 +52,8 @@ class ChunkTask:
 
 
 def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
-    """Fly one chunk (runs on a worker, or in process)."""
-    from scftc_cli.scoring import episode_outcomes
-    from scftc_cli.sim.rollout import rollout
-    from scftc_cli.sim.testbed import testbed
-
-    bed = testbed(task.benchmark)
-    episodes = bed.draw(
-        task.split,
-        task.fault_class,
-        task.sensor,
-        task.n_faults,
-        task.n_seeds,
-        task.salt,
-        task.start,
-        task.stop,
-    )
-    make, cleanup = task.ref.factory()
-    try:
-        flown = rollout(make(), episodes, backend=task.backend)
-        return episode_outcomes(flown, bed.spec.gates, episodes.fault_index, bed.truth(episodes))
-    finally:
-        cleanup()
+    """Fly one chunk (runs on a worker, or in process): a stack of one."""
+    return run_stack(StackTask((task,)))[0]
 
 
 @dataclass(frozen=True)
@@ -92,7 +72,7 @@ class StackTask:
 def run_stack(task: StackTask) -> tuple[EpisodeOutcomes, ...]:
     """Fly a stack's chunks as one batch; each chunk's outcomes (runs on a worker, or in process)."""
     from scftc_cli.scoring import episode_outcomes
-    from scftc_cli.sim.rollout import rollout
+    from scftc_cli.sim.rollout import rollout_parts
     from scftc_cli.sim.testbed import testbed
 
     first = task.parts[0]
@@ -103,15 +83,13 @@ def run_stack(task: StackTask) -> tuple[EpisodeOutcomes, ...]:
     ]
     make, cleanup = first.ref.factory()
     try:
-        flown = rollout(make(), type(parts[0]).concat(parts), backend=first.backend)
+        flown = rollout_parts(make(), parts, backend=first.backend)
     finally:
         cleanup()
-    out, start = [], 0
-    for part in parts:
-        rows = flown.subset(slice(start, start + part.n))
-        out.append(episode_outcomes(rows, bed.spec.gates, part.fault_index, bed.truth(part)))
-        start += part.n
-    return tuple(out)
+    return tuple(
+        episode_outcomes(rows, bed.spec.gates, part.fault_index, bed.truth(part))
+        for part, rows in zip(parts, flown, strict=True)
+    )
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:

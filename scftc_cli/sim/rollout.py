@@ -182,6 +182,25 @@ def rollout(
     return Rollout(*stats, error_deg=errors, states=history, commands=commands)
 
 
+def rollout_parts(
+    controller: Controller,
+    parts: list[Episodes],
+    *,
+    backend: str = "numpy",
+    progress: Progress = NO_PROGRESS,
+) -> list[Rollout]:
+    """``rollout`` of several batches of one version as one batch (``Episodes.concat``), cut back
+    into one ``Rollout`` per batch: equal to flying each alone for a controller whose rows are
+    independent (every built-in)."""
+    episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
+    flown = rollout(controller, episodes, backend=backend, progress=progress)
+    out, start = [], 0
+    for part in parts:
+        out.append(flown.subset(slice(start, start + part.n)))
+        start += part.n
+    return out
+
+
 @dataclass
 class _HealthAccumulator:
     """Gathers a controller's health reports step by step (``HealthTrace``)."""
