@@ -205,9 +205,8 @@ def tanh_array(x):
 # inputs are folded in per pass so that the partial sums stay in registers for four products.
 
 ROWS = 4
-CHUNK_ROWS = (
-    64  # rows a thread takes at a time (a multiple of ROWS): the kernels' parallel loops run over these
-)
+# Rows a thread takes at a time (a multiple of ROWS): the kernels' parallel loops run over these.
+CHUNK_ROWS = 64
 
 
 @numba.njit(error_model="numpy")
