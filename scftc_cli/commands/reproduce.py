@@ -64,7 +64,10 @@ def reproduce_command(
     spec = get_spec(benchmark)
     out = Path("results") / spec.version if out is None else out
     start = time.perf_counter()
-    with cluster(workers, scheduler) as runner, progress_bar("reproduce", planned_steps(spec)) as progress:
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar("reproduce", planned_steps(spec, on_cluster=runner is not None)) as progress,
+    ):
         study = run_study(spec, n_faults, n_seeds, progress=progress, runner=runner)
         progress.describe("writing tables and figures")
         from scftc_cli.study.figures import write_figures  # matplotlib only when a figure is drawn

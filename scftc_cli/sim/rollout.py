@@ -187,18 +187,32 @@ def rollout_parts(
     parts: list[Episodes],
     *,
     backend: str = "numpy",
+    record: bool = False,
     progress: Progress = NO_PROGRESS,
 ) -> list[Rollout]:
     """``rollout`` of several batches of one version as one batch (``Episodes.concat``), cut back
     into one ``Rollout`` per batch: equal to flying each alone for a controller whose rows are
-    independent (every built-in)."""
+    independent (every built-in). ``progress`` is advanced by ``len(parts)`` a step: a step of the
+    stack is a step of each batch."""
     episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
-    flown = rollout(controller, episodes, backend=backend, progress=progress)
+    flown = rollout(
+        controller, episodes, backend=backend, record=record, progress=_Scaled(progress, len(parts))
+    )
     out, start = [], 0
     for part in parts:
         out.append(flown.subset(slice(start, start + part.n)))
         start += part.n
     return out
+
+
+class _Scaled(Progress):
+    """Forwards each step of a stack of ``batches`` as that many steps."""
+
+    def __init__(self, progress: Progress, batches: int) -> None:
+        self.progress, self.batches = progress, batches
+
+    def advance(self, amount: float = 1.0) -> None:
+        self.progress.advance(amount * self.batches)
 
 
 @dataclass

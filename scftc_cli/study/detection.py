@@ -37,7 +37,15 @@ def before_onset(steps: int, onset_step: np.ndarray) -> np.ndarray:
 
 
 def detection_stats(controller: Controller, episodes: Episodes, gates: GateSpec) -> dict[str, np.ndarray]:
-    """Fly ``controller`` through ``episodes`` and measure its detector.
+    """Fly ``controller`` through ``episodes`` and measure its detector (``detector_stats``), with
+    the settled gate for reference (``settled``)."""
+    result = rollout(controller, episodes)
+    return {**detector_stats(controller, episodes), "settled": gate_outcomes(result, gates)["settled"]}
+
+
+def detector_stats(detector: Any, episodes: Episodes, rows: slice = slice(None)) -> dict[str, np.ndarray]:
+    """Measure the detector of a controller that has flown ``episodes`` at ``rows`` of its batch
+    (all of it by default; a part of a stacked flight otherwise).
 
     A fault in force from step ``onset`` is seen first at ``k = onset + 1``: a delay of 1 is the
     earliest possible.
@@ -49,15 +57,12 @@ def detection_stats(controller: Controller, episodes: Episodes, gates: GateSpec)
         ``pre_onset_alarms``: actuator-steps with an alarm up to the onset (false alarms);
         ``pre_onset_steps``: actuator-steps tested up to the onset (their exposure);
         ``healthy_alarms``: actuator-steps with an alarm over the whole episode on the actuators the
-            fault leaves healthy, and ``healthy_wheel_steps`` their exposure;
-        ``settled``: the settled gate, for reference.
+            fault leaves healthy, and ``healthy_wheel_steps`` their exposure.
     """
-    result = rollout(controller, episodes)
-    detector: Any = controller
     fault: Any = episodes.fault  # type: ignore[attr-defined]
     onset = np.asarray(fault.onset_step)
     healthy = fault.healthy_actuators()
-    alarms, changes = detector.alarm_steps, detector.change_steps  # (n, steps, m)
+    alarms, changes = detector.alarm_steps[rows], detector.change_steps[rows]  # (n, steps, m)
     before = before_onset(alarms.shape[1], onset)
     on_faulted = (changes & ~before[:, :, None] & ~healthy[:, None, :]).any(axis=2)
     first = np.where(on_faulted.any(axis=1), np.argmax(on_faulted, axis=1), -1)
@@ -69,5 +74,4 @@ def detection_stats(controller: Controller, episodes: Episodes, gates: GateSpec)
         "pre_onset_steps": m * before[:, 1:].sum(axis=1),
         "healthy_alarms": (alarms & healthy[:, None, :]).sum(axis=(1, 2)),
         "healthy_wheel_steps": healthy.sum(axis=1) * (alarms.shape[1] - 1),
-        "settled": gate_outcomes(result, gates)["settled"],
     }

@@ -20,12 +20,21 @@ from pydantic import BaseModel
 
 from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.errors import ScftcError
-from scftc_cli.evaluate import Cell, CellRun, eval_result, evaluate_cells, prefetch_cells, select_cells
-from scftc_cli.protocol import NO_PROGRESS, Progress
+from scftc_cli.evaluate import (
+    Cell,
+    CellRun,
+    StackInspector,
+    eval_result,
+    evaluate_cells,
+    prefetch_cells,
+    select_cells,
+)
+from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
+from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.mrp import principal_angle_deg
-from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.rollout import rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions import StudyPlan, get_version
@@ -262,13 +271,16 @@ def sensor_controller_count(spec: BenchmarkSpec, entries: dict[str, ControllerSp
     return int(deployable) + int(study_plan(spec).sensor_oracle in entries)
 
 
-def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
+def planned_steps(
+    spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None, *, on_cluster: bool = False
+) -> int:
     """Simulation steps ``run_study`` takes (progress bar total): the battery, the trajectories
-    (one batch per class and controller), the sensor table and ``fdir``'s detection flights (one
-    batch per actuator class, where measured)."""
+    (one batch per class and controller), the sensor table and, on a cluster, ``fdir``'s detection
+    flights (one batch per actuator class, where measured; in process the detector is read off
+    the battery's own flight)."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
-    detection = n_classes if measures_detection(spec, entries) else 0
+    detection = n_classes if on_cluster and measures_detection(spec, entries) else 0
     if sensors_in_battery(spec):
         return (len(entries) * (2 * n_classes + n_sensors) + detection) * spec.steps
     rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
@@ -308,9 +320,11 @@ def _fly(
     n_seeds: int,
     progress: Progress,
     runner: Runner | None = None,
+    inspect: StackInspector | None = None,
 ) -> list[CellRun]:
-    """``evaluate_cells`` for one controller. A controller that fails to load or fly stops the study
-    with an error naming it: a battery with a silently missing row would misreport the study."""
+    """``evaluate_cells`` for one controller (its stacks shown to ``inspect``). A controller that
+    fails to load or fly stops the study with an error naming it: a battery with a silently missing
+    row would misreport the study."""
     try:
         return evaluate_cells(
             lambda _cell: entry.make(),
@@ -322,6 +336,7 @@ def _fly(
             label=entry.name,
             runner=runner,
             ref=BuiltinRef(entry.name, spec.version),
+            inspect=inspect,
         )
     except ScftcError as err:
         raise StudyError(f"controller `{entry.name}` failed: {err}") from err
@@ -353,20 +368,26 @@ def example_trajectories(
 ) -> list[Trajectory]:
     """Every controller on the first pinned episode (fault 0, seed 0) of each held-out class.
 
-    The episode is fixed by the seeds, not chosen by outcome.
+    The episode is fixed by the seeds, not chosen by outcome. A controller flies the classes'
+    episodes as one batch (``rollout_parts``: a row is the episode flown alone, bit for bit, for
+    every built-in), so the per-step cost is paid once per controller, not once per class.
     """
     bed = testbed(spec.version)
+    classes = spec.fault_classes
+    parts = [bed.draw("test", fault_class, None, n_faults=1, n_seeds=1) for fault_class in classes]
+    flights = {}
+    for entry in entries:
+        progress.describe(f"trajectories: {entry.name}")
+        try:
+            flights[entry.name] = rollout_parts(entry.make(), parts, record=True, progress=progress)
+        except Exception as err:
+            raise StudyError(f"controller `{entry.name}` failed on a trajectory: {err}") from err
     out = []
-    for fault_class in spec.fault_classes:
-        episode = bed.draw("test", fault_class, None, n_faults=1, n_seeds=1)
+    for fault_class, episode, row in zip(classes, parts, range(len(parts)), strict=True):
+        fault = episode.fault  # type: ignore[attr-defined]
+        scale = inertia_scale(episode)  # the hub's f, wherever the version keeps it
         for entry in entries:
-            progress.describe(f"trajectory: {entry.name} on {fault_class}")
-            try:
-                result = rollout(entry.make(), episode, record=True, progress=progress)
-            except Exception as err:
-                raise StudyError(f"controller `{entry.name}` failed on {fault_class}: {err}") from err
-            fault = episode.fault  # type: ignore[attr-defined]
-            scale = inertia_scale(episode)  # the hub's f, wherever the version keeps it
+            result = flights[entry.name][row]
             assert result.error_deg is not None
             out.append(
                 Trajectory(
@@ -387,24 +408,53 @@ def example_trajectories(
     return out
 
 
+class DetectorReadings:
+    """A ``StackInspector`` for the battery's flight of the plan's detector: measures it
+    (``detector_stats``) on each held-out actuator cell as the stack that holds it lands, so the
+    detection table needs no second flight. ``stats``: fault class -> its measurements."""
+
+    def __init__(self) -> None:
+        self.stats: dict[str, dict[str, np.ndarray]] = {}
+
+    def __call__(self, controller: Controller, members: list[tuple[Cell, Episodes, slice]]) -> None:
+        from scftc_cli.study.detection import detector_stats
+
+        for cell, episodes, rows in members:
+            if cell.sensor is None:
+                try:
+                    self.stats[cell.fault_class] = detector_stats(controller, episodes, rows)
+                except AttributeError as err:
+                    raise StudyError(f"it records no detector: {err}") from err
+
+
 def fdir_detection(
-    entry: ControllerSpec, spec: BenchmarkSpec, runs: list[CellRun], progress: Progress = NO_PROGRESS
+    entry: ControllerSpec,
+    spec: BenchmarkSpec,
+    runs: list[CellRun],
+    progress: Progress = NO_PROGRESS,
+    measured: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> tuple[Detection, ...]:
-    """The plan's detector (``entry``) flown again through the episodes of its held-out actuator
-    cells in ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn again after a cluster
-    run), measured by ``detection_stats``. One ``Detection`` per actuator cell, in ``runs``' order."""
+    """The plan's detector (``entry``) measured by ``detection_stats`` on the episodes of its
+    held-out actuator cells in ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn
+    again after a cluster run): read off the battery's flight where ``measured``
+    (``DetectorReadings.stats``) holds the class, flown again otherwise. One ``Detection`` per
+    actuator cell, in ``runs``' order."""
     from scftc_cli.study.detection import detection_stats
 
     out = []
     for run in (r for r in runs if r.cell.sensor is None):
-        progress.describe(f"detection: {entry.name} on {run.cell.fault_class}")
-        try:
-            stats = detection_stats(entry.make(), run.drawn(), spec.gates)
-        except AttributeError as err:
-            raise StudyError(f"controller `{entry.name}` records no detector: {err}") from err
-        except Exception as err:
-            raise StudyError(f"controller `{entry.name}` failed on {run.cell.fault_class}: {err}") from err
-        progress.advance(spec.steps)  # detection_stats flies one batch without a progress hook
+        stats = (measured or {}).get(run.cell.fault_class)
+        if stats is None:
+            progress.describe(f"detection: {entry.name} on {run.cell.fault_class}")
+            try:
+                stats = detection_stats(entry.make(), run.drawn(), spec.gates)
+            except AttributeError as err:
+                raise StudyError(f"controller `{entry.name}` records no detector: {err}") from err
+            except Exception as err:
+                raise StudyError(
+                    f"controller `{entry.name}` failed on {run.cell.fault_class}: {err}"
+                ) from err
+            progress.advance(spec.steps)  # detection_stats flies one batch without a progress hook
         out.append(
             Detection(
                 fault_class=run.cell.fault_class,
@@ -458,7 +508,21 @@ def run_study(
                 n_faults=n_faults,
                 n_seeds=n_seeds,
             )
-    runs = {e.name: _fly(e, spec, battery_cells, n_faults, n_seeds, progress, runner) for e in battery_order}
+    measured = plan.detector is not None and measures_detection(spec, entries)
+    readings = DetectorReadings()  # filled by the detector's own battery flight (not on a cluster)
+    runs = {
+        e.name: _fly(
+            e,
+            spec,
+            battery_cells,
+            n_faults,
+            n_seeds,
+            progress,
+            runner,
+            readings if e.name == plan.detector else None,
+        )
+        for e in battery_order
+    }
     battery = [_result(e, spec, runs[e.name]) for e in battery_order]
     if in_battery:
         sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]
@@ -494,8 +558,8 @@ def run_study(
         trajectories=example_trajectories(battery_order, spec, progress),
         runs=runs,
         detection=(
-            fdir_detection(entries[plan.detector], spec, runs[plan.detector], progress)
-            if plan.detector is not None and measures_detection(spec, entries)
+            fdir_detection(entries[plan.detector], spec, runs[plan.detector], progress, readings.stats)
+            if measured and plan.detector is not None
             else ()
         ),
     )

@@ -115,8 +115,9 @@ def test_only_versions_with_onsets_and_fdir_measure_detection() -> None:
     without = {k: v for k, v in registry(V2.version).items() if k != DETECTOR}
     assert not measures_detection(V2, without)
     battery = 2 * len(V2.fault_classes) + len(V2.sensor_faults)  # its cells and trajectories
-    detection = len(V2.fault_classes)  # one more batch per actuator class
-    assert planned_steps(V2) - planned_steps(V2, without) == (battery + detection) * V2.steps
+    assert planned_steps(V2) - planned_steps(V2, without) == battery * V2.steps
+    detection = len(V2.fault_classes)  # on a cluster, one more batch per actuator class
+    assert planned_steps(V2, on_cluster=True) - planned_steps(V2) == detection * V2.steps
 
 
 class _Counting(Progress):
@@ -140,3 +141,20 @@ def test_the_study_writes_the_detection_figure_and_table(
     names = {p.name for p in write_tables(study, tmp_path) + write_figures(study, tmp_path)}
     assert {"fdir_detection.md", "fdir_detection.png", "fdir_detection.svg"} <= names
     assert list(_rows_by_class((tmp_path / "fdir_detection.md").read_text())) == list(V2.fault_classes)
+
+
+@pytest.mark.slow
+def test_the_detector_read_off_the_battery_flight_is_the_detector_flown_again(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The study measures the detector on its battery flight (stacked with the sensor cells); a
+    flight of each cell alone (as after a cluster run) measures the same, number for number."""
+    only_fdir = {DETECTOR: registry(V2.version)[DETECTOR]}
+    monkeypatch.setattr(study_run, "registry", lambda _benchmark=None: only_fdir)
+    study = run_study(V2, 1, 3)
+    again = fdir_detection(only_fdir[DETECTOR], V2, study.runs[DETECTOR])
+    assert [d.fault_class for d in again] == [d.fault_class for d in study.detection]
+    for read, flown in zip(study.detection, again, strict=True):
+        for name in ("delay_steps", "faulted", "pre_onset_alarms", "healthy_alarms", "healthy_wheel_steps"):
+            np.testing.assert_array_equal(getattr(read, name), getattr(flown, name), err_msg=name)
+    assert sum(d.n_faulted for d in again) > 0  # something to detect

@@ -266,7 +266,7 @@ def test_progress_total_is_the_work_done() -> None:
     progress = _Counting()
     run_study(SPEC, 1, 1, progress=progress)
     assert progress.steps == planned_steps(SPEC)
-    assert any(d.startswith("trajectory: ") for d in progress.descriptions)
+    assert any(d.startswith("trajectories: ") for d in progress.descriptions)
 
 
 def test_example_trajectories_on_v3_plot_the_error_to_each_windows_target() -> None:
