@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from itertools import accumulate
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,7 +19,7 @@ from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.registry import controller_spec
 from scftc_cli.scoring import episode_outcomes, score_cell
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.sim.rollout import Rollout, rollout, rollout_parts
+from scftc_cli.sim.rollout import Rollout, part_rows, rollout, rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
@@ -182,9 +181,7 @@ def evaluate_stacked(
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
             runs[i] = _scored(spec, cell, part, rows)
         if inspect is not None:
-            ends = list(accumulate(part.n for part in parts))
-            slices = [slice(end - part.n, end) for part, end in zip(parts, ends, strict=True)]
-            inspect(controller, list(zip(members, parts, slices, strict=True)))
+            inspect(controller, list(zip(members, parts, part_rows(parts), strict=True)))
     return [runs[i] for i in range(len(cells))]
 
 

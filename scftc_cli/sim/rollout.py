@@ -198,9 +198,14 @@ def rollout_parts(
     flown = rollout(
         controller, episodes, backend=backend, record=record, progress=_Scaled(progress, len(parts))
     )
+    return [flown.subset(rows) for rows in part_rows(parts)]
+
+
+def part_rows(parts: list[Episodes]) -> list[slice]:
+    """Where each batch of ``parts`` sits in their concatenation (``rollout_parts``' batch)."""
     out, start = [], 0
     for part in parts:
-        out.append(flown.subset(slice(start, start + part.n)))
+        out.append(slice(start, start + part.n))
         start += part.n
     return out
 

@@ -34,7 +34,7 @@ from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.mrp import principal_angle_deg
-from scftc_cli.sim.rollout import rollout_parts
+from scftc_cli.sim.rollout import part_rows, rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.versions import StudyPlan, get_version
@@ -427,6 +427,41 @@ class DetectorReadings:
                     raise StudyError(f"it records no detector: {err}") from err
 
 
+def detector_flight(
+    make: Callable[[], Controller],
+    cells: list[Cell],
+    parts: list[Episodes],
+    progress: Progress = NO_PROGRESS,
+) -> dict[str, dict[str, np.ndarray]]:
+    """A detector (``make``'s) flown through the episodes ``parts`` of the actuator ``cells`` as one
+    batch and measured on each (``DetectorReadings``): fault class -> its measurements."""
+    controller = make()
+    rollout_parts(controller, parts, progress=progress)
+    readings = DetectorReadings()
+    readings(controller, list(zip(cells, parts, part_rows(parts), strict=True)))
+    return readings.stats
+
+
+@dataclass(frozen=True)
+class DetectionFlight:
+    """The plan's detector flown again through the held-out actuator cells, as a task a cluster
+    worker runs (``fly_detection``) while the battery flies."""
+
+    version: str
+    detector: str
+    classes: tuple[str, ...]
+    n_faults: int
+    n_seeds: int
+
+
+def fly_detection(flight: DetectionFlight) -> dict[str, dict[str, np.ndarray]]:
+    """``detector_flight`` of ``flight`` (on a worker, or in process)."""
+    bed = testbed(flight.version)
+    cells = [Cell("test", c) for c in flight.classes]
+    parts = [bed.draw("test", c, None, flight.n_faults, flight.n_seeds) for c in flight.classes]
+    return detector_flight(registry(flight.version)[flight.detector].make, cells, parts)
+
+
 def fdir_detection(
     entry: ControllerSpec,
     spec: BenchmarkSpec,
@@ -434,27 +469,25 @@ def fdir_detection(
     progress: Progress = NO_PROGRESS,
     measured: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> tuple[Detection, ...]:
-    """The plan's detector (``entry``) measured by ``detection_stats`` on the episodes of its
-    held-out actuator cells in ``runs`` (``CellRun.drawn()``: the battery's own episodes, drawn
-    again after a cluster run): read off the battery's flight where ``measured``
-    (``DetectorReadings.stats``) holds the class, flown again otherwise. One ``Detection`` per
+    """The plan's detector (``entry``) measured (``detector_stats``) on the episodes of its
+    held-out actuator cells in ``runs``: ``measured`` where given (read off the battery's own
+    flight, ``DetectorReadings.stats``, or a cluster's ``fly_detection``) where it holds every
+    class, else flown again here through ``CellRun.drawn()`` (the battery's own episodes) as one
+    batch. One ``Detection`` per
     actuator cell, in ``runs``' order."""
-    from scftc_cli.study.detection import detection_stats
-
+    actuator = [r for r in runs if r.cell.sensor is None]
+    if measured is None or any(r.cell.fault_class not in measured for r in actuator):
+        progress.describe(f"detection: {entry.name}")
+        cells, parts = [r.cell for r in actuator], [r.drawn() for r in actuator]
+        try:
+            measured = detector_flight(entry.make, cells, parts, progress)
+        except StudyError as err:
+            raise StudyError(f"controller `{entry.name}` failed: {err}") from err
+        except Exception as err:
+            raise StudyError(f"controller `{entry.name}` failed: {type(err).__name__}: {err}") from err
     out = []
-    for run in (r for r in runs if r.cell.sensor is None):
-        stats = (measured or {}).get(run.cell.fault_class)
-        if stats is None:
-            progress.describe(f"detection: {entry.name} on {run.cell.fault_class}")
-            try:
-                stats = detection_stats(entry.make(), run.drawn(), spec.gates)
-            except AttributeError as err:
-                raise StudyError(f"controller `{entry.name}` records no detector: {err}") from err
-            except Exception as err:
-                raise StudyError(
-                    f"controller `{entry.name}` failed on {run.cell.fault_class}: {err}"
-                ) from err
-            progress.advance(spec.steps)  # detection_stats flies one batch without a progress hook
+    for run in actuator:
+        stats = measured[run.cell.fault_class]
         out.append(
             Detection(
                 fault_class=run.cell.fault_class,
@@ -498,7 +531,16 @@ def run_study(
     gate = spec.gates.settled_deg
     in_battery = sensors_in_battery(spec)  # does every controller fly the sensor cells?
     battery_cells = actuator_cells + sensor_cells if in_battery else actuator_cells
+    measured = plan.detector is not None and measures_detection(spec, entries)
+    readings = DetectorReadings()  # filled by the detector's own battery flight (not on a cluster)
+    flight = (
+        DetectionFlight(spec.version, plan.detector, tuple(spec.fault_classes), n_faults, n_seeds)
+        if measured and plan.detector is not None and runner is not None
+        else None
+    )
     if runner is not None:  # every controller's flights queued at once: the workers never wait
+        if flight is not None:
+            runner.prefetch(fly_detection, [flight])
         for e in battery_order:
             prefetch_cells(
                 runner,
@@ -508,8 +550,6 @@ def run_study(
                 n_faults=n_faults,
                 n_seeds=n_seeds,
             )
-    measured = plan.detector is not None and measures_detection(spec, entries)
-    readings = DetectorReadings()  # filled by the detector's own battery flight (not on a cluster)
     runs = {
         e.name: _fly(
             e,
@@ -523,6 +563,13 @@ def run_study(
         )
         for e in battery_order
     }
+    if flight is not None and runner is not None:
+        progress.describe(f"detection: {flight.detector} on the cluster")
+        weight = len(flight.classes) * spec.steps
+        try:
+            (readings.stats,) = runner.map(fly_detection, [flight], progress, weight=lambda _f: weight)
+        except Exception as err:
+            raise StudyError(f"controller `{flight.detector}` failed: {type(err).__name__}: {err}") from err
     battery = [_result(e, spec, runs[e.name]) for e in battery_order]
     if in_battery:
         sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]

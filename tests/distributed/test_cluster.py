@@ -247,3 +247,22 @@ def test_a_generation_spread_over_the_workers_equals_the_one_in_process(dask_run
         out["cluster"]["provenance"]["train_settled_rate"]
         == out["process"]["provenance"]["train_settled_rate"]
     )
+
+
+@pytest.mark.slow
+def test_the_study_on_the_cluster_measures_the_detector_as_in_process(dask_runner: Runner, monkeypatch):
+    """On a cluster the detector is flown again on a worker while the battery flies; in process it
+    is read off the battery's own flight. Both measure the same, number for number."""
+    from scftc_cli.study import run as study_run
+    from scftc_cli.versions import get_version
+    from scftc_cli.versions.v2.spec import V2
+
+    detector = get_version(V2.version).study.detector or ""
+    only = {detector: registry(V2.version)[detector]}
+    monkeypatch.setattr(study_run, "registry", lambda _benchmark=None: only)
+    serial = study_run.run_study(V2, 1, 3)
+    clustered = study_run.run_study(V2, 1, 3, runner=dask_runner)
+    assert [d.fault_class for d in clustered.detection] == list(V2.fault_classes)
+    for a, b in zip(serial.detection, clustered.detection, strict=True):
+        for name in ("delay_steps", "faulted", "pre_onset_alarms", "healthy_alarms", "healthy_wheel_steps"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
