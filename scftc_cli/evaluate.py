@@ -154,13 +154,16 @@ def evaluate_stacked(
     n_seeds: int | None = None,
     backend: str = "numpy",
     salt: bytes = b"",
+    salts: list[bytes] | None = None,
     progress: Progress = NO_PROGRESS,
     label: str = "",
     inspect: StackInspector | None = None,
 ) -> list[CellRun]:
     """``evaluate_cell`` over ``cells``, bit for bit, with the cells' episodes flown as one batch
     (``stacks``) by one controller: one step of the loop for all of them, the plant's kernels on
-    a batch large enough for every core, the controller's per-step cost paid once.
+    a batch large enough for every core, the controller's per-step cost paid once. ``salts``, one
+    per cell, draws each cell with its own salt instead of ``salt`` (a board's public and sealed
+    draws of the same cells, stacked).
 
     Only for controllers whose rows are independent (every built-in: a row's commands depend on
     that row's readings alone; tests/test_stacking.py checks it, every built-in of every version);
@@ -170,12 +173,18 @@ def evaluate_stacked(
     """
     bed = testbed(spec.version)
     n = (spec.n_faults if n_faults is None else n_faults) * (spec.n_seeds if n_seeds is None else n_seeds)
+    salts = [salt] * len(cells) if salts is None else salts
+    if len(salts) != len(cells):
+        raise UsageError(f"{len(salts)} salts for {len(cells)} cells")
     runs: dict[int, CellRun] = {}
     for group in stacks(spec, cells, n):
         members = [cells[i] for i in group]
-        names = ", ".join(c.label for c in members)
+        names = ", ".join(dict.fromkeys(c.label for c in members))
         progress.describe(f"{label} on {names}" if label else names)
-        parts = [bed.draw(c.split, c.fault_class, c.sensor, n_faults, n_seeds, salt) for c in members]
+        parts = [
+            bed.draw(c.split, c.fault_class, c.sensor, n_faults, n_seeds, salts[i])
+            for i, c in zip(group, members, strict=True)
+        ]
         controller = make(members[0])
         flown = rollout_parts(controller, parts, backend=backend, progress=progress)
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):

@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from scftc_cli.errors import UsageError
 from scftc_cli.evaluate import STACK_EPISODES, Cell, board_cells, evaluate_cell, evaluate_stacked, stacks
 from scftc_cli.registry import make_controller, registry
 from scftc_cli.sim.rollout import Rollout, rollout
@@ -97,3 +98,23 @@ def test_a_cluster_flies_a_built_in_as_one_stack_per_worker_and_a_submission_cel
     assert [p.fault_class for t in built_in for p in t.parts] == [c.fault_class for c in cells]
     submitted = cluster_tasks(SubmissionRef("x.py", b"SUBMISSION = {}"), spec, cells, workers=2)
     assert [len(t.parts) for t in submitted] == [1] * len(cells)
+
+
+@pytest.mark.parametrize("version", version_names())
+def test_draws_with_their_own_salts_stack_as_each_draw_flown_alone(version: str) -> None:
+    """A board's public and sealed draws of the same cells fly as one batch (``salts``): each cell
+    scores as its draw flown alone, and the two draws really differ."""
+    spec, cells = get_spec(version), _some_cells(version)
+    make = lambda _cell: make_controller("pd", version)  # noqa: E731
+    salts = [b"", b"sealed"]
+    both = evaluate_stacked(
+        make, spec, cells * 2, n_faults=2, n_seeds=2, salts=[s for s in salts for _ in cells]
+    )
+    for i, salt in enumerate(salts):
+        alone = evaluate_stacked(make, spec, cells, n_faults=2, n_seeds=2, salt=salt)
+        for a, s in zip(alone, both[i * len(cells) : (i + 1) * len(cells)], strict=True):
+            assert s.result == a.result
+            np.testing.assert_array_equal(s.outcomes.final_error_deg, a.outcomes.final_error_deg)
+    assert not np.array_equal(both[0].outcomes.final_error_deg, both[len(cells)].outcomes.final_error_deg)
+    with pytest.raises(UsageError, match="1 salts for 5 cells"):
+        evaluate_stacked(make, spec, cells, n_faults=1, n_seeds=1, salts=[b""])

@@ -22,7 +22,14 @@ import numpy as np
 from scftc_cli.board.models import BACKEND, Entry
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import SubmissionRejected
-from scftc_cli.evaluate import Cell, ControllerFactory, board_cells, evaluate_cells, prefetch_cells
+from scftc_cli.evaluate import (
+    Cell,
+    ControllerFactory,
+    board_cells,
+    evaluate_cells,
+    evaluate_stacked,
+    prefetch_cells,
+)
 from scftc_cli.protocol import NO_PROGRESS, Context, Controller, Progress
 from scftc_cli.records import CellResult
 from scftc_cli.registry import ControllerSpec
@@ -97,6 +104,23 @@ def _score(
     cells: list[Cell] | None = None,
 ) -> Flown:
     cells = scoring.flown_cells if cells is None else cells
+    if scoring.runner is None and isinstance(ref, BuiltinRef):
+        # every draw's cells flown as one batch (a built-in's rows are independent)
+        flown = evaluate_stacked(
+            make,
+            scoring.spec,
+            [cell for _ in draws for cell in cells],
+            n_faults=scoring.faults,
+            n_seeds=scoring.seeds,
+            backend=scoring.backend,
+            salts=[salt for salt in draws.values() for _ in cells],
+            progress=scoring.progress,
+            label=label,
+        )
+        return {
+            draw: [run.result for run in flown[i * len(cells) : (i + 1) * len(cells)]]
+            for i, draw in enumerate(draws)
+        }
     return {
         draw: [
             run.result
