@@ -189,15 +189,15 @@ def rollout_parts(
     backend: str = "numpy",
     record: bool = False,
     progress: Progress = NO_PROGRESS,
+    step_weight: float | None = None,
 ) -> list[Rollout]:
     """``rollout`` of several batches of one version as one batch (``Episodes.concat``), cut back
     into one ``Rollout`` per batch: equal to flying each alone for a controller whose rows are
-    independent (every built-in). ``progress`` is advanced by ``len(parts)`` a step: a step of the
-    stack is a step of each batch."""
+    independent (every built-in). ``progress`` is advanced by ``step_weight`` a step, by default
+    ``len(parts)``: a step of the stack is a step of each batch."""
     episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
-    flown = rollout(
-        controller, episodes, backend=backend, record=record, progress=_Scaled(progress, len(parts))
-    )
+    weight = float(len(parts)) if step_weight is None else step_weight
+    flown = rollout(controller, episodes, backend=backend, record=record, progress=_Scaled(progress, weight))
     return [flown.subset(rows) for rows in part_rows(parts)]
 
 
@@ -211,13 +211,13 @@ def part_rows(parts: list[Episodes]) -> list[slice]:
 
 
 class _Scaled(Progress):
-    """Forwards each step of a stack of ``batches`` as that many steps."""
+    """Forwards each step of a stack as ``weight`` steps."""
 
-    def __init__(self, progress: Progress, batches: int) -> None:
-        self.progress, self.batches = progress, batches
+    def __init__(self, progress: Progress, weight: float) -> None:
+        self.progress, self.weight = progress, weight
 
     def advance(self, amount: float = 1.0) -> None:
-        self.progress.advance(amount * self.batches)
+        self.progress.advance(amount * self.weight)
 
 
 @dataclass

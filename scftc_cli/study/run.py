@@ -274,17 +274,19 @@ def sensor_controller_count(spec: BenchmarkSpec, entries: dict[str, ControllerSp
 def planned_steps(
     spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None, *, on_cluster: bool = False
 ) -> int:
-    """Simulation steps ``run_study`` takes (progress bar total): the battery, the trajectories
-    (one batch per class and controller), the sensor table and, on a cluster, ``fdir``'s detection
-    flights (one batch per actuator class, where measured; in process the detector is read off
-    the battery's own flight)."""
+    """Simulation steps ``run_study`` takes (progress bar total), in steps of one cell's batch: the
+    battery, the trajectories (counted as one batch per controller: one episode per class, a small
+    part of the work), the sensor table and, on a cluster, ``fdir``'s detection flights (one
+    batch per actuator class, where measured; in process the detector is read off the battery's
+    own flight)."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
     detection = n_classes if on_cluster and measures_detection(spec, entries) else 0
+    trajectories = len(entries)
     if sensors_in_battery(spec):
-        return (len(entries) * (2 * n_classes + n_sensors) + detection) * spec.steps
-    rollouts = 2 * len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
-    return (rollouts + detection) * spec.steps
+        return (len(entries) * (n_classes + n_sensors) + trajectories + detection) * spec.steps
+    rollouts = len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
+    return (rollouts + trajectories + detection) * spec.steps
 
 
 def choose_deployed(battery: list[EvalResult], preference: str | None) -> tuple[str | None, str]:
@@ -379,7 +381,9 @@ def example_trajectories(
     for entry in entries:
         progress.describe(f"trajectories: {entry.name}")
         try:
-            flights[entry.name] = rollout_parts(entry.make(), parts, record=True, progress=progress)
+            flights[entry.name] = rollout_parts(
+                entry.make(), parts, record=True, progress=progress, step_weight=1.0
+            )
         except Exception as err:
             raise StudyError(f"controller `{entry.name}` failed on a trajectory: {err}") from err
     out = []
