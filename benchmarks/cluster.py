@@ -1,7 +1,8 @@
 """Serial vs a local Dask cluster (``--workers``), in one run: ``leaderboard verify`` of the
 committed board and one 50 000-episode cell.
 
-Run: ``python benchmarks/cluster.py [--workers 2] [--out benchmarks/results/cluster.json]``
+Run: ``python benchmarks/cluster.py [--benchmark scftc-v2] [--workers 2] [--out FILE]`` (default
+file ``benchmarks/results/cluster.json``, or ``cluster-<version>.json`` for another version)
 
 (Not ``dask.py``: run as a script, a file of that name beside it would shadow the ``dask`` package.)
 
@@ -26,7 +27,8 @@ from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.distributed.runner import cluster
 from scftc_cli.evaluate import Cell, evaluate_cells
 from scftc_cli.registry import make_controller
-from scftc_cli.versions.v1.spec import V1
+from scftc_cli.spec import get_spec
+from scftc_cli.versions import version_names
 
 BIG = (500, 100)  # 50 000 episodes
 
@@ -39,19 +41,27 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
+    parser.add_argument("--benchmark", choices=version_names(), default=version_names()[0])
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/cluster.json"))
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    board = default_board_path(V1.version)
+    first = args.benchmark == version_names()[0]
+    out = args.out or Path(f"benchmarks/results/cluster{'' if first else '-' + args.benchmark}.json")
+    spec = get_spec(args.benchmark)
+    board = default_board_path(spec.version)
     cell = [Cell("test", "gain_bias")]
-    doc: dict = {"machine": platform.processor() or platform.machine(), "workers": args.workers}
+    doc: dict = {
+        "machine": platform.processor() or platform.machine(),
+        "benchmark": spec.version,
+        "workers": args.workers,
+    }
 
     start = time.perf_counter()
-    serial_report = verify(board, Scoring(V1))
+    serial_report = verify(board, Scoring(spec))
     doc["verify_serial_s"] = time.perf_counter() - start
     start = time.perf_counter()
     serial_cell = evaluate_cells(
-        lambda _c: make_controller("rls_dob"), V1, cell, n_faults=BIG[0], n_seeds=BIG[1]
+        lambda _c: make_controller("rls_dob", spec.version), spec, cell, n_faults=BIG[0], n_seeds=BIG[1]
     )
     doc["cell_50k_serial_s"] = time.perf_counter() - start
     doc["serial_peak_rss_mb"] = peak_rss_mb()
@@ -61,13 +71,13 @@ def main() -> None:
         assert runner is not None
         started = time.perf_counter()
         doc["cluster_start_s"] = started - start
-        cluster_report = verify(board, Scoring(V1, runner=runner))
+        cluster_report = verify(board, Scoring(spec, runner=runner))
         doc["verify_cluster_s"] = time.perf_counter() - start
         start = time.perf_counter()
-        ref = BuiltinRef("rls_dob", V1.version)
+        ref = BuiltinRef("rls_dob", spec.version)
         cluster_cell = evaluate_cells(
-            lambda _c: make_controller("rls_dob"),
-            V1,
+            lambda _c: make_controller("rls_dob", spec.version),
+            spec,
             cell,
             n_faults=BIG[0],
             n_seeds=BIG[1],
@@ -85,9 +95,9 @@ def main() -> None:
     doc["cell_speedup"] = doc["cell_50k_serial_s"] / doc["cell_50k_cluster_s"]
     for key, value in doc.items():
         print(f"{key}: {value:.2f}" if isinstance(value, float) else f"{key}: {value}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(doc, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=2) + "\n")
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

@@ -5,19 +5,26 @@ A controller with a detector records, after a rollout, ``alarm_steps`` and ``cha
 ``k``), where the test of step ``k`` looks at the step ``k - 1`` just flown. The episodes' fault
 says when it starts (``onset_step`` ``(n,)``) and which actuators it leaves healthy
 (``healthy_actuators()`` ``(n, m)``). Nothing here knows which version or controller it measures:
-the version names the detector it measures (``StudyPlan.detector``).
+the version names the detector it measures (``StudyPlan.detector``), and the study reads it off
+the battery's own flight (``DetectorReadings``) or flies it again (``detector_flight``; on a
+cluster, ``fly_detection``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 
-from scftc_cli.protocol import Controller
+from scftc_cli.evaluate import Cell
+from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
+from scftc_cli.registry import registry
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.sim.rollout import rollout
+from scftc_cli.sim.rollout import part_rows, rollout, rollout_parts
+from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import GateSpec
 
 
@@ -75,3 +82,52 @@ def detector_stats(detector: Any, episodes: Episodes, rows: slice = slice(None))
         "healthy_alarms": (alarms & healthy[:, None, :]).sum(axis=(1, 2)),
         "healthy_wheel_steps": healthy.sum(axis=1) * (alarms.shape[1] - 1),
     }
+
+
+class DetectorReadings:
+    """A ``StackInspector`` for the battery's flight of the plan's detector: measures it
+    (``detector_stats``) on each held-out actuator cell as the stack that holds it lands, so the
+    detection table needs no second flight. ``stats``: fault class -> its measurements."""
+
+    def __init__(self) -> None:
+        self.stats: dict[str, dict[str, np.ndarray]] = {}
+
+    def __call__(self, controller: Controller, members: list[tuple[Cell, Episodes, slice]]) -> None:
+        for cell, episodes, rows in members:
+            if cell.sensor is None:
+                self.stats[cell.fault_class] = detector_stats(controller, episodes, rows)
+
+
+def detector_flight(
+    make: Callable[[], Controller],
+    cells: list[Cell],
+    parts: list[Episodes],
+    progress: Progress = NO_PROGRESS,
+) -> dict[str, dict[str, np.ndarray]]:
+    """A detector (``make``'s) flown through the episodes ``parts`` of the actuator ``cells`` as one
+    batch and measured on each (``DetectorReadings``): fault class -> its measurements."""
+    controller = make()
+    rollout_parts(controller, parts, progress=progress)
+    readings = DetectorReadings()
+    readings(controller, list(zip(cells, parts, part_rows(parts), strict=True)))
+    return readings.stats
+
+
+@dataclass(frozen=True)
+class DetectionFlight:
+    """The plan's detector flown again through the held-out actuator cells, as a task a cluster
+    worker runs (``fly_detection``) while the battery flies."""
+
+    version: str
+    detector: str
+    classes: tuple[str, ...]
+    n_faults: int
+    n_seeds: int
+
+
+def fly_detection(flight: DetectionFlight) -> dict[str, dict[str, np.ndarray]]:
+    """``detector_flight`` of ``flight`` (on a worker, or in process)."""
+    bed = testbed(flight.version)
+    cells = [Cell("test", c) for c in flight.classes]
+    parts = [bed.draw("test", c, None, flight.n_faults, flight.n_seeds) for c in flight.classes]
+    return detector_flight(registry(flight.version)[flight.detector].make, cells, parts)

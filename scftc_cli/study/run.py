@@ -29,14 +29,14 @@ from scftc_cli.evaluate import (
     prefetch_cells,
     select_cells,
 )
-from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
+from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
-from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.mrp import principal_angle_deg
-from scftc_cli.sim.rollout import part_rows, rollout_parts
+from scftc_cli.sim.rollout import rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
+from scftc_cli.study.detection import DetectionFlight, DetectorReadings, detector_flight, fly_detection
 from scftc_cli.versions import StudyPlan, get_version
 
 if TYPE_CHECKING:
@@ -410,60 +410,6 @@ def example_trajectories(
                 )
             )
     return out
-
-
-class DetectorReadings:
-    """A ``StackInspector`` for the battery's flight of the plan's detector: measures it
-    (``detector_stats``) on each held-out actuator cell as the stack that holds it lands, so the
-    detection table needs no second flight. ``stats``: fault class -> its measurements."""
-
-    def __init__(self) -> None:
-        self.stats: dict[str, dict[str, np.ndarray]] = {}
-
-    def __call__(self, controller: Controller, members: list[tuple[Cell, Episodes, slice]]) -> None:
-        from scftc_cli.study.detection import detector_stats
-
-        for cell, episodes, rows in members:
-            if cell.sensor is None:
-                try:
-                    self.stats[cell.fault_class] = detector_stats(controller, episodes, rows)
-                except AttributeError as err:
-                    raise StudyError(f"it records no detector: {err}") from err
-
-
-def detector_flight(
-    make: Callable[[], Controller],
-    cells: list[Cell],
-    parts: list[Episodes],
-    progress: Progress = NO_PROGRESS,
-) -> dict[str, dict[str, np.ndarray]]:
-    """A detector (``make``'s) flown through the episodes ``parts`` of the actuator ``cells`` as one
-    batch and measured on each (``DetectorReadings``): fault class -> its measurements."""
-    controller = make()
-    rollout_parts(controller, parts, progress=progress)
-    readings = DetectorReadings()
-    readings(controller, list(zip(cells, parts, part_rows(parts), strict=True)))
-    return readings.stats
-
-
-@dataclass(frozen=True)
-class DetectionFlight:
-    """The plan's detector flown again through the held-out actuator cells, as a task a cluster
-    worker runs (``fly_detection``) while the battery flies."""
-
-    version: str
-    detector: str
-    classes: tuple[str, ...]
-    n_faults: int
-    n_seeds: int
-
-
-def fly_detection(flight: DetectionFlight) -> dict[str, dict[str, np.ndarray]]:
-    """``detector_flight`` of ``flight`` (on a worker, or in process)."""
-    bed = testbed(flight.version)
-    cells = [Cell("test", c) for c in flight.classes]
-    parts = [bed.draw("test", c, None, flight.n_faults, flight.n_seeds) for c in flight.classes]
-    return detector_flight(registry(flight.version)[flight.detector].make, cells, parts)
 
 
 def fdir_detection(
