@@ -61,6 +61,17 @@ def test_each_worker_gets_its_share_of_the_cores_and_this_process_keeps_its_envi
     assert set(dask_runner.client.run(_numba_threads).values()) == {share}
 
 
+def _malloc_trim() -> str | None:
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_")
+
+
+def test_workers_start_without_dasks_malloc_trim_threshold(dask_runner):
+    """Dask sets MALLOC_TRIM_THRESHOLD_ in its workers, which turns off glibc's adaptive mmap
+    threshold and made the numpy-heavy controllers fly twice as slowly there (docs/scaling.md)."""
+    assert set(dask_runner.client.run(_malloc_trim).values()) == {None}
+    assert _malloc_trim() is None  # nor is it left in this process
+
+
 def _serial(name: str, n_faults: int, n_seeds: int):
     return evaluate_cells(lambda _c: make_controller(name), V1, CELLS, n_faults=n_faults, n_seeds=n_seeds)
 
