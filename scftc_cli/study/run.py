@@ -118,7 +118,7 @@ class Trajectory:
 @dataclass(frozen=True)
 class Detection:
     """A detector on the held-out episodes of one actuator class: what
-    ``study.detection.detection_stats`` returns for the very episodes the battery flew.
+    ``study.detection.detector_stats`` returns for the very episodes the battery flew.
 
     The test of step ``k`` looks at the step ``k - 1`` just flown, so a delay of 1 step is the
     earliest possible.
@@ -371,8 +371,9 @@ def example_trajectories(
     """Every controller on the first pinned episode (fault 0, seed 0) of each held-out class.
 
     The episode is fixed by the seeds, not chosen by outcome. A controller flies the classes'
-    episodes as one batch (``rollout_parts``: a row is the episode flown alone, bit for bit, for
-    every built-in), so the per-step cost is paid once per controller, not once per class.
+    episodes as one batch (``rollout_parts``), so the per-step cost is paid once per controller,
+    not once per class; a row agrees with its episode flown alone to about 1e-10 deg (a batch of
+    one row takes numpy's matrix-vector paths, ``evaluate_stacked``).
     """
     bed = testbed(spec.version)
     classes = spec.fault_classes
@@ -387,7 +388,7 @@ def example_trajectories(
         except Exception as err:
             raise StudyError(f"controller `{entry.name}` failed on a trajectory: {err}") from err
     out = []
-    for fault_class, episode, row in zip(classes, parts, range(len(parts)), strict=True):
+    for row, (fault_class, episode) in enumerate(zip(classes, parts, strict=True)):
         fault = episode.fault  # type: ignore[attr-defined]
         scale = inertia_scale(episode)  # the hub's f, wherever the version keeps it
         for entry in entries:
@@ -420,19 +421,16 @@ def fdir_detection(
     measured: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> tuple[Detection, ...]:
     """The plan's detector (``entry``) measured (``detector_stats``) on the episodes of its
-    held-out actuator cells in ``runs``: ``measured`` where given (read off the battery's own
-    flight, ``DetectorReadings.stats``, or a cluster's ``fly_detection``) where it holds every
-    class, else flown again here through ``CellRun.drawn()`` (the battery's own episodes) as one
-    batch. One ``Detection`` per
-    actuator cell, in ``runs``' order."""
+    held-out actuator cells in ``runs``: ``measured`` where it holds every class (read off the
+    battery's own flight, ``DetectorReadings.stats``, or a cluster's ``fly_detection``), else flown
+    again here through ``CellRun.drawn()`` (the battery's own episodes) as one batch. One
+    ``Detection`` per actuator cell, in ``runs``' order."""
     actuator = [r for r in runs if r.cell.sensor is None]
     if measured is None or any(r.cell.fault_class not in measured for r in actuator):
         progress.describe(f"detection: {entry.name}")
         cells, parts = [r.cell for r in actuator], [r.drawn() for r in actuator]
         try:
             measured = detector_flight(entry.make, cells, parts, progress)
-        except StudyError as err:
-            raise StudyError(f"controller `{entry.name}` failed: {err}") from err
         except Exception as err:
             raise StudyError(f"controller `{entry.name}` failed: {type(err).__name__}: {err}") from err
     out = []
@@ -481,11 +479,11 @@ def run_study(
     gate = spec.gates.settled_deg
     in_battery = sensors_in_battery(spec)  # does every controller fly the sensor cells?
     battery_cells = actuator_cells + sensor_cells if in_battery else actuator_cells
-    measured = plan.detector is not None and measures_detection(spec, entries)
+    detector = plan.detector if measures_detection(spec, entries) else None  # the one measured
     readings = DetectorReadings()  # filled by the detector's own battery flight (not on a cluster)
     flight = (
-        DetectionFlight(spec.version, plan.detector, tuple(spec.fault_classes), n_faults, n_seeds)
-        if measured and plan.detector is not None and runner is not None
+        DetectionFlight(spec.version, detector, tuple(spec.fault_classes), n_faults, n_seeds)
+        if detector is not None and runner is not None
         else None
     )
     if runner is not None:  # every controller's flights queued at once: the workers never wait
@@ -509,11 +507,11 @@ def run_study(
             n_seeds,
             progress,
             runner,
-            readings if e.name == plan.detector else None,
+            readings if e.name == detector else None,
         )
         for e in battery_order
     }
-    if flight is not None and runner is not None:
+    if flight is not None and runner is not None:  # (runner: for the type checker)
         progress.describe(f"detection: {flight.detector} on the cluster")
         weight = len(flight.classes) * spec.steps
         try:
@@ -555,8 +553,8 @@ def run_study(
         trajectories=example_trajectories(battery_order, spec, progress),
         runs=runs,
         detection=(
-            fdir_detection(entries[plan.detector], spec, runs[plan.detector], progress, readings.stats)
-            if measured and plan.detector is not None
+            fdir_detection(entries[detector], spec, runs[detector], progress, readings.stats)
+            if detector is not None
             else ()
         ),
     )
