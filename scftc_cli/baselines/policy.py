@@ -21,7 +21,7 @@ from scftc_cli.baselines import recurrent
 from scftc_cli.baselines.params import committed_weights
 from scftc_cli.errors import ScftcError, UsageError
 from scftc_cli.protocol import Context, Controller
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class PolicyNet:
             self.b_mlp,
             self.w_out,
             self.b_out,
-            parallel=x.shape[0] >= PARALLEL_MIN_BATCH,
+            parallel=x.shape[0] >= HEAVY_PARALLEL_MIN_BATCH,
         )
         return action
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from scftc_cli.baselines import recurrent
 from scftc_cli.errors import ScftcError
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ class StudentNet:
             self.prior_weight,
             self.log_mag_min,
             self.log_mag_max,
-            parallel=x.shape[0] >= PARALLEL_MIN_BATCH,
+            parallel=x.shape[0] >= HEAVY_PARALLEL_MIN_BATCH,
         )
         return state.estimate
 

@@ -53,6 +53,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
+from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.mekf import inv3
 
 
@@ -102,13 +103,14 @@ def friction_shape(
     dt_s: float,
     iterations: int = 8,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``friction_shape_reference`` (its definition, below) as one numba pass over the wheels:
-    the same floating-point operations in the same order, so the same bits; ``(n, m)`` arrays
-    in, ``(shape, mean_speed, exact)`` ``(n, m)`` out."""
+    """``friction_shape_reference`` (its definition, below) as one numba pass over the wheels (rows
+    of ``sim/rows.run_rows``): the same floating-point operations in the same order, so the same
+    bits; ``(n, m)`` arrays in, ``(shape, mean_speed, exact)`` ``(n, m)`` out."""
     start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
     coulomb = np.broadcast_to(np.asarray(coulomb_nm, dtype=np.float64), start.shape)
     shape, mean_speed, exact = np.empty_like(start), np.empty_like(start), np.empty(start.shape, bool)
-    _friction_shape(
+    run_rows(
+        _friction_shape,
         np.ascontiguousarray(start).reshape(-1),
         np.ascontiguousarray(end).reshape(-1),
         np.ascontiguousarray(coulomb).reshape(-1),
@@ -120,6 +122,7 @@ def friction_shape(
         shape.reshape(-1),
         mean_speed.reshape(-1),
         exact.reshape(-1),
+        parallel=start.size >= HEAVY_PARALLEL_MIN_BATCH,
     )
     return shape, mean_speed, exact
 
@@ -166,11 +169,11 @@ def _shape_rk4(e, start, end, coulomb, js, w, cv, dt):  # pragma: no cover - com
     return start + dt / 6.0 * total - end, dt / 6.0 * total_e, s0, s1, s2, s3
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", parallel=True)
 def _friction_shape(
     start, end, coulomb, js, w, cv, dt, iterations, shape, mean_speed, exact
 ):  # pragma: no cover - compiled
-    for j in range(start.shape[0]):
+    for j in numba.prange(start.shape[0]):
         a, b, c = start[j], end[j], coulomb[j]
         e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
         for _ in range(iterations):

@@ -42,6 +42,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
+from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.adaptive import predicted_torque, sample_weight
 from scftc_cli.versions.v2.controllers.estimators import (
     ChangeDetector,
@@ -108,14 +109,13 @@ def _eig2_min(m11: float, m12: float, m22: float) -> float:
 
 
 @numba.njit(cache=True)
-def _score(m: np.ndarray) -> float:
-    """Curation score of information entries ``m`` (6,): ``lambda_min(M) + FRICTION_TIE lambda_min``
-    of the ``[a, 1]`` block."""
-    low, _ = _eig_extremes(m[0], m[1], m[2], m[3], m[4], m[5])
-    return max(low, 0.0) + FRICTION_TIE * _eig2_min(m[0], m[1], m[3])
+def _score(m0: float, m1: float, m2: float, m3: float, m4: float, m5: float) -> float:
+    """Curation score of the information entries ``(M11, M12, M13, M22, M23, M33)``:
+    ``lambda_min(M) + FRICTION_TIE lambda_min`` of the ``[a, 1]`` block."""
+    low, _ = _eig_extremes(m0, m1, m2, m3, m4, m5)
+    return max(low, 0.0) + FRICTION_TIE * _eig2_min(m0, m1, m3)
 
 
-@numba.njit(cache=True)
 def stack_offer(
     ys: np.ndarray,
     us: np.ndarray,
@@ -127,61 +127,98 @@ def stack_offer(
 ) -> None:
     """Offer window ``(y (n, m, 3), u (n, m))`` to the stacks ``ys (n, m, S, 3)``, ``us (n, m, S)``,
     ``used (n, m, S)`` where ``offer`` ``(n, m)``: fill a free slot, else replace the slot whose
-    replacement scores best if that beats ``margin`` times the current score. In place."""
+    replacement scores best if that beats ``margin`` times the current score. In place; the
+    episodes are independent rows (``sim/rows.run_rows``, threaded from ``HEAVY_PARALLEL_MIN_BATCH``)."""
+    run_rows(
+        _offer_rows,
+        ys,
+        us,
+        used,
+        np.ascontiguousarray(y, dtype=np.float64),
+        np.ascontiguousarray(u, dtype=np.float64),
+        np.ascontiguousarray(offer, dtype=np.bool_),
+        float(margin),
+        parallel=used.shape[0] >= HEAVY_PARALLEL_MIN_BATCH,
+    )
+
+
+@numba.njit(cache=True, parallel=True)
+def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compiled
+    """``stack_offer``'s loop, one episode per ``prange`` row."""
     n, m, size = used.shape
-    info = np.empty(6)
-    trial = np.empty(6)
-    for e in range(n):
+    for e in numba.prange(n):
         for w in range(m):
             if not offer[e, w]:
                 continue
             free = -1
-            info[:] = 0.0
+            i0 = i1 = i2 = i3 = i4 = i5 = 0.0
             for j in range(size):
                 if not used[e, w, j]:
                     if free < 0:
                         free = j
                     continue
                 a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
-                info[0] += a * a
-                info[1] += a * one
-                info[2] += a * s
-                info[3] += one * one
-                info[4] += one * s
-                info[5] += s * s
+                i0 += a * a
+                i1 += a * one
+                i2 += a * s
+                i3 += one * one
+                i4 += one * s
+                i5 += s * s
             if free >= 0:
-                ys[e, w, free, :] = y[e, w, :]
+                ys[e, w, free, 0] = y[e, w, 0]
+                ys[e, w, free, 1] = y[e, w, 1]
+                ys[e, w, free, 2] = y[e, w, 2]
                 us[e, w, free] = u[e, w]
                 used[e, w, free] = True
                 continue
-            now = _score(info)
+            now = _score(i0, i1, i2, i3, i4, i5)
             best, best_j = -np.inf, -1
             na, no, ns = y[e, w, 0], y[e, w, 1], y[e, w, 2]
             for j in range(size):
                 a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
-                trial[0] = info[0] - a * a + na * na
-                trial[1] = info[1] - a * one + na * no
-                trial[2] = info[2] - a * s + na * ns
-                trial[3] = info[3] - one * one + no * no
-                trial[4] = info[4] - one * s + no * ns
-                trial[5] = info[5] - s * s + ns * ns
-                score = _score(trial)
+                score = _score(
+                    i0 - a * a + na * na,
+                    i1 - a * one + na * no,
+                    i2 - a * s + na * ns,
+                    i3 - one * one + no * no,
+                    i4 - one * s + no * ns,
+                    i5 - s * s + ns * ns,
+                )
                 if score > best:
                     best, best_j = score, j
             if best > margin * now + 1e-12:
-                ys[e, w, best_j, :] = y[e, w, :]
+                ys[e, w, best_j, 0] = y[e, w, 0]
+                ys[e, w, best_j, 1] = y[e, w, 1]
+                ys[e, w, best_j, 2] = y[e, w, 2]
                 us[e, w, best_j] = u[e, w]
 
 
-@numba.njit(cache=True)
 def stack_step(
     ys: np.ndarray, us: np.ndarray, used: np.ndarray, phi: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(sum_j Y_j (U_j - Y_j'phi) / lambda_max(M) (n, m, 3), lambda_min of the [a, 1] block (n, m))``."""
-    n, m, size = used.shape
+    """``(sum_j Y_j (U_j - Y_j'phi) / lambda_max(M) (n, m, 3), lambda_min of the [a, 1] block (n, m))``,
+    one episode per row (as ``stack_offer``)."""
+    n, m, _ = used.shape
     direction = np.zeros((n, m, 3))
     arm = np.zeros((n, m))
-    for e in range(n):
+    run_rows(
+        _step_rows,
+        ys,
+        us,
+        used,
+        np.ascontiguousarray(phi, dtype=np.float64),
+        direction,
+        arm,
+        parallel=n >= HEAVY_PARALLEL_MIN_BATCH,
+    )
+    return direction, arm
+
+
+@numba.njit(cache=True, parallel=True)
+def _step_rows(ys, us, used, phi, direction, arm):  # pragma: no cover - compiled
+    """``stack_step``'s loop, one episode per ``prange`` row, into ``direction`` and ``arm``."""
+    n, m, size = used.shape
+    for e in numba.prange(n):
         for w in range(m):
             m11 = m12 = m13 = m22 = m23 = m33 = 0.0
             for j in range(size):
@@ -203,7 +240,6 @@ def stack_step(
             for c in range(3):
                 direction[e, w, c] *= scale
             arm[e, w] = _eig2_min(m11, m12, m22)
-    return direction, arm
 
 
 class ICLAdaptive(Tuned, EstimatingPort):
