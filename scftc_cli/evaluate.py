@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
 from scftc_cli.errors import UnknownNameError, UsageError
@@ -43,10 +43,24 @@ class Cell:
 
 ControllerFactory = Callable[[Cell], Controller]
 
-StackInspector = Callable[[Controller, list[tuple[Cell, Episodes, slice]]], None]
-"""Called after a stack is flown (``evaluate_stacked``) with the controller that flew it and, per
-cell of the stack, the cell, its episodes and its rows in the stack: for what a controller keeps
-beyond the scores (a detector's alarms), read without flying the episodes again."""
+StackReader = Callable[[Controller, Cell, Episodes, slice], Any]
+"""Reads what to keep of one cell of a flown stack off the controller that flew it: the cell, its
+episodes and its rows in the stack's batch (``None``: nothing to keep). Runs where the stack flew, on
+a cluster's worker too, so it must be a module-level function (it pickles by name)."""
+
+
+class StackInspector(Protocol):
+    """What a controller keeps beyond the scores (a detector's alarms), read off a built-in's own
+    stacked flights (``evaluate_cells``) instead of flying the episodes again.
+
+    ``reader`` runs after each stack, in process or on the worker that flew it; ``take`` gets here,
+    per cell, its readings in episode order: one in process, one per chunk from a cluster.
+    """
+
+    @property
+    def reader(self) -> StackReader: ...
+
+    def take(self, cell: Cell, readings: list[Any]) -> None: ...
 
 
 def select_cells(spec: BenchmarkSpec, split: str, fault_class: str | None, sensor: str | None) -> list[Cell]:
@@ -190,7 +204,8 @@ def evaluate_stacked(
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
             runs[i] = _scored(spec, cell, part, rows)
         if inspect is not None:
-            inspect(controller, list(zip(members, parts, part_rows(parts), strict=True)))
+            for cell, part, at in zip(members, parts, part_rows(parts), strict=True):
+                inspect.take(cell, [inspect.reader(controller, cell, part, at)])
     return [runs[i] for i in range(len(cells))]
 
 
@@ -211,16 +226,16 @@ def evaluate_cells(
 ) -> list[CellRun]:
     """``evaluate_cell`` over ``cells``, in order; ``progress`` is told ``"<label> on <cell>"``.
     A built-in controller (``ref`` a ``BuiltinRef``) flies them stacked (``evaluate_stacked``),
-    showing each stack's controller to ``inspect``; nothing else does (it flies elsewhere).
+    and ``inspect`` reads each stack's controller; nothing else is inspected (it flies elsewhere).
 
     With a ``runner`` (a Dask cluster) the cells are flown there in chunks by the controller of
-    ``ref`` instead, with bit-identical results.
+    ``ref`` instead, with bit-identical results (and readings: ``inspect`` reads on the workers).
     """
     if runner is not None:
         if ref is None:
             raise UsageError("a cluster run needs a controller reference the workers can rebuild")
         return _evaluate_on_cluster(
-            runner, ref, spec, cells, n_faults, n_seeds, backend, salt, progress, label
+            runner, ref, spec, cells, n_faults, n_seeds, backend, salt, progress, label, inspect
         )
     if isinstance(ref, BuiltinRef):
         return evaluate_stacked(
@@ -264,23 +279,33 @@ def _evaluate_on_cluster(
     salt: bytes,
     progress: Progress,
     label: str,
+    inspect: StackInspector | None = None,
 ) -> list[CellRun]:
     """Every cell split into chunks (a built-in's chunks stacked, ``cluster_tasks``), all mapped
-    over the cluster at once, then each cell's chunks concatenated in order and scored here."""
+    over the cluster at once, then each cell's chunks concatenated in order and scored here (and
+    their readings handed to ``inspect``, cell by cell)."""
     from scftc_cli.distributed.runner import run_stack
 
     faults = spec.n_faults if n_faults is None else n_faults
     seeds = spec.n_seeds if n_seeds is None else n_seeds
     n = faults * seeds
-    tasks = cluster_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt, workers=runner.workers())
+    reader = inspect.reader if inspect is not None else None
+    tasks = cluster_tasks(
+        ref, spec, cells, n_faults, n_seeds, backend, salt, workers=runner.workers(), reader=reader
+    )
     progress.describe(f"{label} on {len(cells)} cell(s), {len(tasks)} task(s) on the cluster")
     flown = runner.map(run_stack, tasks, progress, weight=lambda t: spec.steps * t.steps / n)
-    by_chunk = dict(zip((p for t in tasks for p in t.parts), (o for out in flown for o in out), strict=True))
+    parts = [p for t in tasks for p in t.parts]
+    by_chunk = dict(zip(parts, (o for out in flown for o in out.outcomes), strict=True))
+    read = dict(zip(parts, (r for out in flown for r in out.readings), strict=True)) if reader else {}
     chunked = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
     per_cell = len(chunked) // len(cells)
     runs = []
     for i, cell in enumerate(cells):
-        merged = EpisodeOutcomes.concat([by_chunk[c] for c in chunked[i * per_cell : (i + 1) * per_cell]])
+        own = chunked[i * per_cell : (i + 1) * per_cell]
+        if inspect is not None:
+            inspect.take(cell, [read[c] for c in own])
+        merged = EpisodeOutcomes.concat([by_chunk[c] for c in own])
         result = score_cell(
             merged, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
         )
@@ -320,30 +345,42 @@ def cluster_tasks(
     salt: bytes = b"",
     *,
     workers: int = 1,
+    reader: StackReader | None = None,
 ) -> list[StackTask]:
     """``chunk_tasks`` as the cluster flies them: a built-in's whole-cell chunks stacked into
     about one batch per worker (``stacks``, at most ``STACK_EPISODES`` each), so that each worker
-    flies one large batch; anything else one chunk a task."""
+    flies one large batch; anything else one chunk a task. ``reader``: read each chunk's
+    controller on the worker (``StackInspector``; a built-in's only)."""
     from scftc_cli.distributed.runner import StackTask
 
+    if reader is not None and not isinstance(ref, BuiltinRef):
+        raise UsageError("only a built-in controller's flights are inspected")
     chunked = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
     if not isinstance(ref, BuiltinRef) or len(chunked) != len(cells):
-        return [StackTask((c,)) for c in chunked]
+        return [StackTask((c,), reader) for c in chunked]
     n = chunked[0].steps
     share = -(-len(cells) // max(1, workers)) * n  # the cells spread evenly over the workers
     groups = stacks(spec, cells, n, min(share, STACK_EPISODES))
-    return [StackTask(tuple(chunked[i] for i in group)) for group in groups]
+    return [StackTask(tuple(chunked[i] for i in group), reader) for group in groups]
 
 
 def prefetch_cells(
-    runner: Runner, ref: ControllerRef, spec: BenchmarkSpec, cells: list[Cell], **draw: Any
+    runner: Runner,
+    ref: ControllerRef,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    inspect: StackInspector | None = None,
+    **draw: Any,
 ) -> None:
-    """Queue on ``runner`` the tasks a later ``evaluate_cells(..., runner=runner, ref=ref)`` of
-    ``cells`` with the same ``draw`` options (``n_faults``, ``n_seeds``, ``backend``, ``salt``)
-    will map (``Runner.prefetch``)."""
+    """Queue on ``runner`` the tasks a later ``evaluate_cells(..., runner=runner, ref=ref,
+    inspect=inspect)`` of ``cells`` with the same ``draw`` options (``n_faults``, ``n_seeds``,
+    ``backend``, ``salt``) will map (``Runner.prefetch``)."""
     from scftc_cli.distributed.runner import run_stack
 
-    runner.prefetch(run_stack, cluster_tasks(ref, spec, cells, **draw, workers=runner.workers()))
+    reader = inspect.reader if inspect is not None else None
+    runner.prefetch(
+        run_stack, cluster_tasks(ref, spec, cells, **draw, workers=runner.workers(), reader=reader)
+    )
 
 
 def planned_steps(spec: BenchmarkSpec, cells: list[Cell]) -> int:

@@ -66,13 +66,13 @@ def reproduce_command(
     start = time.perf_counter()
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar("reproduce", planned_steps(spec, on_cluster=runner is not None)) as progress,
+        progress_bar("reproduce", planned_steps(spec)) as progress,
     ):
         study = run_study(spec, n_faults, n_seeds, progress=progress, runner=runner)
         progress.describe("writing tables and figures")
         from scftc_cli.study.figures import write_figures  # matplotlib only when a figure is drawn
 
-        paths = write_tables(study, out) + write_figures(study, out)
+        paths = write_tables(study, out) + write_figures(study, out, runner)
         if training_seeds:
             from scftc_cli.study.seeds import write_seed_table
 

@@ -16,7 +16,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from scftc_cli.distributed.refs import ControllerRef
 from scftc_cli.errors import ScftcError, UsageError
@@ -53,15 +53,17 @@ class ChunkTask:
 
 def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
     """Fly one chunk (runs on a worker, or in process): a stack of one."""
-    return run_stack(StackTask((task,)))[0]
+    return run_stack(StackTask((task,))).outcomes[0]
 
 
 @dataclass(frozen=True)
 class StackTask:
     """Chunks of several cells flown as one batch by one controller (a built-in's: its rows are
-    independent, so each chunk comes out as if flown alone; ``evaluate.evaluate_stacked``)."""
+    independent, so each chunk comes out as if flown alone; ``evaluate.evaluate_stacked``), and
+    what to read off that controller afterwards (``reader``, an ``evaluate.StackReader``)."""
 
     parts: tuple[ChunkTask, ...]
+    reader: Callable[..., Any] | None = None
 
     @property
     def steps(self) -> int:
@@ -69,10 +71,18 @@ class StackTask:
         return sum(part.steps for part in self.parts)
 
 
-def run_stack(task: StackTask) -> tuple[EpisodeOutcomes, ...]:
-    """Fly a stack's chunks as one batch; each chunk's outcomes (runs on a worker, or in process)."""
+class StackFlight(NamedTuple):
+    """A flown ``StackTask``: each chunk's outcomes, and its reading (``None`` without a reader)."""
+
+    outcomes: tuple[EpisodeOutcomes, ...]
+    readings: tuple[Any, ...]
+
+
+def run_stack(task: StackTask) -> StackFlight:
+    """Fly a stack's chunks as one batch (runs on a worker, or in process)."""
+    from scftc_cli.evaluate import Cell
     from scftc_cli.scoring import episode_outcomes
-    from scftc_cli.sim.rollout import rollout_parts
+    from scftc_cli.sim.rollout import part_rows, rollout_parts
     from scftc_cli.sim.testbed import testbed
 
     first = task.parts[0]
@@ -83,13 +93,21 @@ def run_stack(task: StackTask) -> tuple[EpisodeOutcomes, ...]:
     ]
     make, cleanup = first.ref.factory()
     try:
-        flown = rollout_parts(make(), parts, backend=first.backend)
+        controller = make()
+        flown = rollout_parts(controller, parts, backend=first.backend)
+        readings = tuple(
+            None
+            if task.reader is None
+            else task.reader(controller, Cell(p.split, p.fault_class, p.sensor), e, rows)
+            for p, e, rows in zip(task.parts, parts, part_rows(parts), strict=True)
+        )
     finally:
         cleanup()
-    return tuple(
+    outcomes = tuple(
         episode_outcomes(rows, bed.spec.gates, part.fault_index, bed.truth(part))
         for part, rows in zip(parts, flown, strict=True)
     )
+    return StackFlight(outcomes, readings)
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:

@@ -6,25 +6,22 @@ A controller with a detector records, after a rollout, ``alarm_steps`` and ``cha
 says when it starts (``onset_step`` ``(n,)``) and which actuators it leaves healthy
 (``healthy_actuators()`` ``(n, m)``). Nothing here knows which version or controller it measures:
 the version names the detector it measures (``StudyPlan.detector``), and the study reads it off
-the battery's own flight (``DetectorReadings``) or flies it again (``detector_flight``; on a
-cluster, ``fly_detection``).
+the battery's own flight (``DetectorReadings``, where it flew: in process or on a cluster's workers)
+or flies it again (``detector_flight``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 
 from scftc_cli.evaluate import Cell
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
-from scftc_cli.registry import registry
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import part_rows, rollout, rollout_parts
-from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import GateSpec
 
 
@@ -84,18 +81,28 @@ def detector_stats(detector: Any, episodes: Episodes, rows: slice = slice(None))
     }
 
 
+def read_detector(controller: Controller, cell: Cell, episodes: Episodes, rows: slice) -> Any:
+    """A ``StackReader``: ``detector_stats`` of an actuator cell's rows of a flown stack (``None``
+    for a sensor cell: the table is over the actuator classes)."""
+    return detector_stats(controller, episodes, rows) if cell.sensor is None else None
+
+
 class DetectorReadings:
     """A ``StackInspector`` for the battery's flight of the plan's detector: measures it
-    (``detector_stats``) on each held-out actuator cell as the stack that holds it lands, so the
-    detection table needs no second flight. ``stats``: fault class -> its measurements."""
+    (``read_detector``) on each held-out actuator cell where the stack that holds it flew (in
+    process, or on a cluster's worker), so the detection table needs no second flight. ``stats``:
+    fault class -> its measurements, a cluster's chunks joined in episode order."""
 
     def __init__(self) -> None:
         self.stats: dict[str, dict[str, np.ndarray]] = {}
 
-    def __call__(self, controller: Controller, members: list[tuple[Cell, Episodes, slice]]) -> None:
-        for cell, episodes, rows in members:
-            if cell.sensor is None:
-                self.stats[cell.fault_class] = detector_stats(controller, episodes, rows)
+    @property
+    def reader(self) -> Callable[[Controller, Cell, Episodes, slice], Any]:
+        return read_detector
+
+    def take(self, cell: Cell, readings: list[Any]) -> None:
+        if cell.sensor is None:
+            self.stats[cell.fault_class] = {k: np.concatenate([r[k] for r in readings]) for k in readings[0]}
 
 
 def detector_flight(
@@ -109,25 +116,6 @@ def detector_flight(
     controller = make()
     rollout_parts(controller, parts, progress=progress)
     readings = DetectorReadings()
-    readings(controller, list(zip(cells, parts, part_rows(parts), strict=True)))
+    for cell, part, rows in zip(cells, parts, part_rows(parts), strict=True):
+        readings.take(cell, [readings.reader(controller, cell, part, rows)])
     return readings.stats
-
-
-@dataclass(frozen=True)
-class DetectionFlight:
-    """The plan's detector flown again through the held-out actuator cells, as a task a cluster
-    worker runs (``fly_detection``) while the battery flies."""
-
-    version: str
-    detector: str
-    classes: tuple[str, ...]
-    n_faults: int
-    n_seeds: int
-
-
-def fly_detection(flight: DetectionFlight) -> dict[str, dict[str, np.ndarray]]:
-    """``detector_flight`` of ``flight`` (on a worker, or in process)."""
-    bed = testbed(flight.version)
-    cells = [Cell("test", c) for c in flight.classes]
-    parts = [bed.draw("test", c, None, flight.n_faults, flight.n_seeds) for c in flight.classes]
-    return detector_flight(registry(flight.version)[flight.detector].make, cells, parts)

@@ -6,8 +6,10 @@ privileged oracles are hatched and labelled so they are never read as deployable
 
 from __future__ import annotations
 
+import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -35,10 +37,14 @@ from scftc_cli.study.run import (
     sensor_bias_deg,
 )
 
+if TYPE_CHECKING:
+    from scftc_cli.distributed.runner import Runner
+
 DPI = 150
 PAD_INCHES = 0.1  # around the tight bounding box, as savefig's default
-SVG_STYLE = {"svg.fonttype": "none"}
-"""SVG text stays text (searchable, and about twice as fast to write as glyphs drawn as paths)."""
+SVG_STYLE = {"svg.fonttype": "none", "svg.hashsalt": "scftc"}
+"""SVG text stays text (searchable, and about twice as fast to write as glyphs drawn as paths); its
+element ids come from a fixed salt, so that the same figure is the same file."""
 ORACLE_HATCH = "//"
 SOURCE_STUDY_GAIN_BIAS = 0.594  # RMA + observer on gain_bias in the source study (docs/study.md)
 ERROR_FLOOR_DEG = 1e-4  # lower end of the log error axis; below this the attitude is simply "there"
@@ -727,16 +733,29 @@ def settling_time(
     return fig
 
 
-def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
-    """Write ``fig`` as ``stem.png`` and ``stem.svg`` and close it."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [out_dir / f"{stem}.png", out_dir / f"{stem}.svg"]
+def encode(fig: Figure) -> list[tuple[str, bytes]]:
+    """``fig`` as PNG and SVG bytes, ``[(".png", ...), (".svg", ...)]``, and close it. The same
+    figure gives the same bytes in any process: the SVG carries no date and draws its element ids
+    from a fixed salt instead of a random one."""
     fig.draw_without_rendering()  # lays the figure out once; both files share its tight box
     tight = fig.get_tightbbox().padded(PAD_INCHES)
-    fig.savefig(paths[0], dpi=DPI, bbox_inches=tight)
-    with matplotlib.rc_context(SVG_STYLE):
-        fig.savefig(paths[1], dpi=DPI, bbox_inches=tight)
+    out = []
+    for suffix, style, metadata in ((".png", {}, None), (".svg", SVG_STYLE, {"Date": None})):
+        buffer = io.BytesIO()
+        with matplotlib.rc_context(style):
+            fig.savefig(buffer, format=suffix[1:], dpi=DPI, bbox_inches=tight, metadata=metadata)
+        out.append((suffix, buffer.getvalue()))
     plt.close(fig)
+    return out
+
+
+def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
+    """Write ``fig`` as ``stem.png`` and ``stem.svg`` (``encode``) and close it."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for suffix, data in encode(fig):
+        paths.append(out_dir / f"{stem}{suffix}")
+        paths[-1].write_bytes(data)
     return paths
 
 
@@ -763,29 +782,67 @@ def sensor_final_errors(study: Study) -> dict[str, dict[str, np.ndarray]]:
     }
 
 
-def write_figures(study: Study, out_dir: Path) -> list[Path]:
-    """Every figure of the study, PNG and SVG, into ``out_dir``: ``FIGURES`` (the last two over the
-    battery's classes, which every controller flew), then on a version with
-    mid-flight onsets ``settled_vs_onset`` and, where ``fdir``'s detector was measured,
+def figure_stems(study: Study) -> list[str]:
+    """The figures ``write_figures`` draws for ``study``: ``FIGURES`` (``bias_wall`` where the
+    version has the bias class, ``sensor_faults`` where it has sensor faults), then on a version
+    with mid-flight onsets ``settled_vs_onset`` and, where ``fdir``'s detector was measured,
     ``fdir_detection``."""
+    skip = set()
+    if BIAS_CLASS not in study.spec.fault_classes:
+        skip.add("bias_wall")
+    if not study.spec.sensor_faults:
+        skip.add("sensor_faults")
+    stems = [stem for stem in FIGURES if stem not in skip]
+    if has_onset(study.spec):
+        stems.append("settled_vs_onset")
+    if study.detection:
+        stems.append("fdir_detection")
+    return stems
+
+
+def draw(study: Study, stem: str) -> Figure:
+    """The figure ``stem`` of ``study`` (one of ``figure_stems``); the last two of ``FIGURES`` are
+    over the battery's classes, which every controller flew."""
     battery = study.battery.results
     colors = _colors([r.controller for r in battery])  # one colour per controller in every figure
-    sensor = study.sensor
-    figures = {"battery_settled": battery_bars(study.spec, battery, colors)}
-    if BIAS_CLASS in study.spec.fault_classes:
-        figures["bias_wall"] = bias_wall(battery, colors)
-    figures["settled_vs_touch"] = settled_vs_touch(study.spec, battery, colors)
-    figures["trajectories"] = trajectories(study.spec, study.trajectories, colors)
-    if study.spec.sensor_faults:
-        figures["sensor_faults"] = sensor_faults(
-            study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors
-        )
     privileged = {r.controller: r.privileged for r in battery}
-    outcomes, columns = cell_outcomes(study), outcome_columns(study, flown_by_all=True)
-    figures["final_error_profile"] = final_error_profile(study.spec, outcomes, columns, privileged, colors)
-    figures["settling_time"] = settling_time(study.spec, outcomes, columns, privileged, colors)
-    if has_onset(study.spec):
-        figures["settled_vs_onset"] = settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)
-    if study.detection:
-        figures["fdir_detection"] = fdir_detection(study.detection)
-    return [p for stem, fig in figures.items() for p in save(fig, out_dir, stem)]
+    if stem == "battery_settled":
+        return battery_bars(study.spec, battery, colors)
+    if stem == "bias_wall":
+        return bias_wall(battery, colors)
+    if stem == "settled_vs_touch":
+        return settled_vs_touch(study.spec, battery, colors)
+    if stem == "trajectories":
+        return trajectories(study.spec, study.trajectories, colors)
+    if stem == "sensor_faults":
+        sensor = study.sensor
+        return sensor_faults(study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors)
+    if stem in ("final_error_profile", "settling_time"):
+        outcomes, columns = cell_outcomes(study), outcome_columns(study, flown_by_all=True)
+        plot = final_error_profile if stem == "final_error_profile" else settling_time
+        return plot(study.spec, outcomes, columns, privileged, colors)
+    if stem == "settled_vs_onset":
+        return settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)
+    if stem == "fdir_detection":
+        return fdir_detection(study.detection)
+    raise ValueError(f"no figure `{stem}`")
+
+
+def render(job: tuple[Study, str]) -> list[tuple[str, bytes]]:
+    """``(study, stem)`` -> the figure's files ``[(name, bytes)]`` (``draw``, ``encode``): a pure
+    function of the study, so a cluster's worker draws the same bytes as this process."""
+    study, stem = job
+    return [(stem + suffix, data) for suffix, data in encode(draw(study, stem))]
+
+
+def write_figures(study: Study, out_dir: Path, runner: Runner | None = None) -> list[Path]:
+    """Every figure of the study (``figure_stems``), PNG and SVG, into ``out_dir``; drawn on the
+    cluster's workers, one figure a task, where a ``runner`` is given (the same bytes)."""
+    jobs = [(study, stem) for stem in figure_stems(study)]
+    rendered = runner.map(render, jobs) if runner is not None else [render(job) for job in jobs]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, data in (file for files in rendered for file in files):
+        paths.append(out_dir / name)
+        paths[-1].write_bytes(data)
+    return paths

@@ -36,7 +36,7 @@ from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.study.detection import DetectionFlight, DetectorReadings, detector_flight, fly_detection
+from scftc_cli.study.detection import DetectorReadings, detector_flight
 from scftc_cli.versions import StudyPlan, get_version
 
 if TYPE_CHECKING:
@@ -271,22 +271,18 @@ def sensor_controller_count(spec: BenchmarkSpec, entries: dict[str, ControllerSp
     return int(deployable) + int(study_plan(spec).sensor_oracle in entries)
 
 
-def planned_steps(
-    spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None, *, on_cluster: bool = False
-) -> int:
+def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
     """Simulation steps ``run_study`` takes (progress bar total), in steps of one cell's batch: the
     battery, the trajectories (counted as one batch per controller: one episode per class, a small
-    part of the work), the sensor table and, on a cluster, ``fdir``'s detection flights (one
-    batch per actuator class, where measured; in process the detector is read off the battery's
-    own flight)."""
+    part of the work) and the sensor table. ``fdir``'s detection costs no steps: it is read off the
+    detector's own battery flight, in process or on the cluster's workers."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
-    detection = n_classes if on_cluster and measures_detection(spec, entries) else 0
     trajectories = len(entries)
     if sensors_in_battery(spec):
-        return (len(entries) * (n_classes + n_sensors) + trajectories + detection) * spec.steps
+        return (len(entries) * (n_classes + n_sensors) + trajectories) * spec.steps
     rollouts = len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
-    return (rollouts + trajectories + detection) * spec.steps
+    return (rollouts + trajectories) * spec.steps
 
 
 def choose_deployed(battery: list[EvalResult], preference: str | None) -> tuple[str | None, str]:
@@ -422,7 +418,7 @@ def fdir_detection(
 ) -> tuple[Detection, ...]:
     """The plan's detector (``entry``) measured (``detector_stats``) on the episodes of its
     held-out actuator cells in ``runs``: ``measured`` where it holds every class (read off the
-    battery's own flight, ``DetectorReadings.stats``, or a cluster's ``fly_detection``), else flown
+    battery's own flight, ``DetectorReadings.stats``, in process or on a cluster), else flown
     again here through ``CellRun.drawn()`` (the battery's own episodes) as one batch. One
     ``Detection`` per actuator cell, in ``runs``' order."""
     actuator = [r for r in runs if r.cell.sensor is None]
@@ -480,44 +476,23 @@ def run_study(
     in_battery = sensors_in_battery(spec)  # does every controller fly the sensor cells?
     battery_cells = actuator_cells + sensor_cells if in_battery else actuator_cells
     detector = plan.detector if measures_detection(spec, entries) else None  # the one measured
-    readings = DetectorReadings()  # filled by the detector's own battery flight (not on a cluster)
-    flight = (
-        DetectionFlight(spec.version, detector, tuple(spec.fault_classes), n_faults, n_seeds)
-        if detector is not None and runner is not None
-        else None
-    )
+    readings = DetectorReadings()  # filled by the detector's own battery flight
+    inspect = {detector: readings} if detector is not None else {}
     if runner is not None:  # every controller's flights queued at once: the workers never wait
-        if flight is not None:
-            runner.prefetch(fly_detection, [flight])
         for e in battery_order:
             prefetch_cells(
                 runner,
                 BuiltinRef(e.name, spec.version),
                 spec,
                 battery_cells,
+                inspect.get(e.name),
                 n_faults=n_faults,
                 n_seeds=n_seeds,
             )
     runs = {
-        e.name: _fly(
-            e,
-            spec,
-            battery_cells,
-            n_faults,
-            n_seeds,
-            progress,
-            runner,
-            readings if e.name == detector else None,
-        )
+        e.name: _fly(e, spec, battery_cells, n_faults, n_seeds, progress, runner, inspect.get(e.name))
         for e in battery_order
     }
-    if flight is not None and runner is not None:  # (runner: for the type checker)
-        progress.describe(f"detection: {flight.detector} on the cluster")
-        weight = len(flight.classes) * spec.steps
-        try:
-            (readings.stats,) = runner.map(fly_detection, [flight], progress, weight=lambda _f: weight)
-        except Exception as err:
-            raise StudyError(f"controller `{flight.detector}` failed: {type(err).__name__}: {err}") from err
     battery = [_result(e, spec, runs[e.name]) for e in battery_order]
     if in_battery:
         sensor_results = [r.model_copy(update={"cells": [c for c in r.cells if c.sensor]}) for r in battery]

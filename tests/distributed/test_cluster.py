@@ -25,7 +25,7 @@ from scftc_cli.board.rounds import new_key
 from scftc_cli.board.verify import verify
 from scftc_cli.commands.app import app
 from scftc_cli.distributed.refs import BuiltinRef
-from scftc_cli.distributed.runner import ChunkTask, Runner, cluster, run_chunk
+from scftc_cli.distributed.runner import ChunkTask, Runner, StackTask, cluster, run_chunk, run_stack
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, evaluate_cells, select_cells
 from scftc_cli.registry import make_controller, registry
@@ -127,6 +127,32 @@ def test_a_slice_of_a_cell_is_that_slice_of_the_whole_cell():
     whole = run_chunk(ChunkTask(ref, V1.version, "test", "gain_bias", None, 5, 4, b"", "numpy", 0, 20))
     part = run_chunk(ChunkTask(ref, V1.version, "test", "gain_bias", None, 5, 4, b"", "numpy", 7, 13))
     np.testing.assert_array_equal(part.final_error_deg, whole.final_error_deg[7:13])
+
+
+def test_a_detector_read_chunk_by_chunk_is_the_detector_read_on_the_whole_cell():
+    """What a worker reads off the detector of each chunk it flew (``StackTask.reader``), joined in
+    episode order (``DetectorReadings.take``), is the reading of the whole cell flown at once."""
+    from scftc_cli.evaluate import Cell
+    from scftc_cli.study.detection import DetectorReadings, read_detector
+    from scftc_cli.versions import get_version
+    from scftc_cli.versions.v2.spec import V2
+
+    ref = BuiltinRef(get_version(V2.version).study.detector or "", V2.version)
+    cell = Cell("test", "sign")
+
+    def chunk(start: int, stop: int) -> StackTask:
+        return StackTask(
+            (ChunkTask(ref, V2.version, "test", "sign", None, 3, 2, b"", "numpy", start, stop),),
+            read_detector,
+        )
+
+    whole, joined = DetectorReadings(), DetectorReadings()
+    whole.take(cell, list(run_stack(chunk(0, 6)).readings))
+    joined.take(cell, [r for part in (chunk(0, 2), chunk(2, 6)) for r in run_stack(part).readings])
+    assert set(joined.stats) == {"sign"} and joined.stats["sign"]["faulted"].shape == (6,)
+    for name, value in whole.stats["sign"].items():
+        np.testing.assert_array_equal(joined.stats["sign"][name], value, err_msg=name)
+    assert run_stack(StackTask(chunk(0, 2).parts)).readings == (None,)  # no reader, nothing read
 
 
 @pytest.mark.slow
@@ -261,9 +287,14 @@ def test_a_generation_spread_over_the_workers_equals_the_one_in_process(dask_run
 
 
 @pytest.mark.slow
-def test_the_study_on_the_cluster_measures_the_detector_as_in_process(dask_runner: Runner, monkeypatch):
-    """On a cluster the detector is flown again on a worker while the battery flies; in process it
-    is read off the battery's own flight. Both measure the same, number for number."""
+def test_the_study_on_the_cluster_measures_the_detector_and_draws_the_figures_as_in_process(
+    dask_runner: Runner, monkeypatch, tmp_path
+):
+    """The detector is read off its own battery flight: in process, or on the workers that flew its
+    stacks (chunk by chunk, joined in episode order). Both measure the same, number for number, and
+    the figures drawn on the workers are the files drawn here, byte for byte."""
+    from scftc_cli.study.figures import write_figures
+
     from scftc_cli.study import run as study_run
     from scftc_cli.versions import get_version
     from scftc_cli.versions.v2.spec import V2
@@ -277,3 +308,8 @@ def test_the_study_on_the_cluster_measures_the_detector_as_in_process(dask_runne
     for a, b in zip(serial.detection, clustered.detection, strict=True):
         for name in ("delay_steps", "faulted", "pre_onset_alarms", "healthy_alarms", "healthy_wheel_steps"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    here = write_figures(serial, tmp_path / "here")
+    there = write_figures(clustered, tmp_path / "there", dask_runner)
+    assert [p.name for p in here] == [p.name for p in there] and len(here) >= 10
+    for a_path, b_path in zip(here, there, strict=True):
+        assert a_path.read_bytes() == b_path.read_bytes(), a_path.name

@@ -115,9 +115,7 @@ def test_only_versions_with_onsets_and_fdir_measure_detection() -> None:
     without = {k: v for k, v in registry(V2.version).items() if k != DETECTOR}
     assert not measures_detection(V2, without)
     battery = len(V2.fault_classes) + len(V2.sensor_faults) + 1  # its cells, its trajectories
-    assert planned_steps(V2) - planned_steps(V2, without) == battery * V2.steps
-    detection = len(V2.fault_classes)  # on a cluster, one more batch per actuator class
-    assert planned_steps(V2, on_cluster=True) - planned_steps(V2) == detection * V2.steps
+    assert planned_steps(V2) - planned_steps(V2, without) == battery * V2.steps  # no detection flight
 
 
 class _Counting(Progress):
@@ -148,7 +146,7 @@ def test_the_detector_read_off_the_battery_flight_is_the_detector_flown_again(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """The study measures the detector on its battery flight (stacked with the sensor cells); a
-    flight of each cell alone (as after a cluster run) measures the same, number for number."""
+    flight of the actuator cells alone measures the same, number for number."""
     only_fdir = {DETECTOR: registry(V2.version)[DETECTOR]}
     monkeypatch.setattr(study_run, "registry", lambda _benchmark=None: only_fdir)
     study = run_study(V2, 1, 3)
