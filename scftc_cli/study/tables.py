@@ -221,8 +221,9 @@ def detection_markdown(spec: BenchmarkSpec, detections: Sequence[Detection]) -> 
     dt_s = spec.dt_s
     head = (
         f"# fdir: fault detection on the held-out actuator classes ({spec.version})\n\n"
-        f"n = {n} episodes per class, the battery's own held-out (test split) episodes, flown again by "
-        "`detection_stats` (`scftc_cli/baselines/v2/fdir.py`). Delay: the first confirmed change on a "
+        f"n = {n} episodes per class, the battery's own held-out (test split) episodes: the alarms are "
+        "read off `fdir`'s battery flight (`detector_stats`, `scftc_cli/study/detection.py`). Delay: the "
+        "first confirmed change on a "
         f"faulted wheel after the onset, in steps of {dt_s:g} s (the test of step k looks at step k - 1, "
         "so 1 is the earliest possible); a faulted episode without one is never detected. Pre-onset "
         "alarms: wheel-steps with a CUSUM alarm up to the onset (false by construction); healthy-wheel "

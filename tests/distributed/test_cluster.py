@@ -293,9 +293,8 @@ def test_the_study_on_the_cluster_measures_the_detector_and_draws_the_figures_as
     """The detector is read off its own battery flight: in process, or on the workers that flew its
     stacks (chunk by chunk, joined in episode order). Both measure the same, number for number, and
     the figures drawn on the workers are the files drawn here, byte for byte."""
-    from scftc_cli.study.figures import write_figures
-
     from scftc_cli.study import run as study_run
+    from scftc_cli.study.figures import write_figures
     from scftc_cli.versions import get_version
     from scftc_cli.versions.v2.spec import V2
 
