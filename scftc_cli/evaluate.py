@@ -289,6 +289,8 @@ def _evaluate_on_cluster(
     faults = spec.n_faults if n_faults is None else n_faults
     seeds = spec.n_seeds if n_seeds is None else n_seeds
     n = faults * seeds
+    if not isinstance(ref, BuiltinRef):
+        inspect = None  # as in process: only a built-in's own flights are read
     reader = inspect.reader if inspect is not None else None
     tasks = cluster_tasks(
         ref, spec, cells, n_faults, n_seeds, backend, salt, workers=runner.workers(), reader=reader

@@ -462,7 +462,8 @@ def run_study(
         n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
             default; fewer for tests: the first faults and seeds of a cell do not depend on these).
         progress: told what runs and advanced after each simulated step.
-        runner: a Dask cluster to fly the cells on (the trajectories stay in process).
+        runner: a Dask cluster to fly the cells on (the trajectories stay in process, flown while
+            the workers fly the battery).
     """
     n_faults = spec.n_faults if n_faults is None else n_faults
     n_seeds = spec.n_seeds if n_seeds is None else n_seeds
@@ -489,6 +490,8 @@ def run_study(
                 n_faults=n_faults,
                 n_seeds=n_seeds,
             )
+    # flown here first: on a cluster, while the workers fly the queued battery
+    trajectories = example_trajectories(battery_order, spec, progress)
     runs = {
         e.name: _fly(e, spec, battery_cells, n_faults, n_seeds, progress, runner, inspect.get(e.name))
         for e in battery_order
@@ -525,7 +528,7 @@ def run_study(
             regimes=regimes,
             results=sensor_results,
         ),
-        trajectories=example_trajectories(battery_order, spec, progress),
+        trajectories=trajectories,
         runs=runs,
         detection=(
             fdir_detection(entries[detector], spec, runs[detector], progress, readings.stats)
