@@ -116,6 +116,28 @@ def _score(m0: float, m1: float, m2: float, m3: float, m4: float, m5: float) -> 
     return max(low, 0.0) + FRICTION_TIE * _eig2_min(m0, m1, m3)
 
 
+@numba.njit(inline="always")
+def _information(ys, used, e, w):  # pragma: no cover - compiled
+    """The information entries ``(M11, M12, M13, M22, M23, M33)`` of the used slots of episode
+    ``e``'s stack of wheel ``w`` (``M = sum_j Y_j Y_j'``, slot by slot), and its first free slot
+    (-1 when the stack is full)."""
+    free = -1
+    m11 = m12 = m13 = m22 = m23 = m33 = 0.0
+    for j in range(used.shape[2]):
+        if not used[e, w, j]:
+            if free < 0:
+                free = j
+            continue
+        a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
+        m11 += a * a
+        m12 += a * one
+        m13 += a * s
+        m22 += one * one
+        m23 += one * s
+        m33 += s * s
+    return m11, m12, m13, m22, m23, m33, free
+
+
 def stack_offer(
     ys: np.ndarray,
     us: np.ndarray,
@@ -150,20 +172,7 @@ def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compil
         for w in range(m):
             if not offer[e, w]:
                 continue
-            free = -1
-            i0 = i1 = i2 = i3 = i4 = i5 = 0.0
-            for j in range(size):
-                if not used[e, w, j]:
-                    if free < 0:
-                        free = j
-                    continue
-                a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
-                i0 += a * a
-                i1 += a * one
-                i2 += a * s
-                i3 += one * one
-                i4 += one * s
-                i5 += s * s
+            i0, i1, i2, i3, i4, i5, free = _information(ys, used, e, w)
             if free >= 0:
                 ys[e, w, free, 0] = y[e, w, 0]
                 ys[e, w, free, 1] = y[e, w, 1]
@@ -220,7 +229,7 @@ def _step_rows(ys, us, used, phi, direction, arm):  # pragma: no cover - compile
     n, m, size = used.shape
     for e in numba.prange(n):
         for w in range(m):
-            m11 = m12 = m13 = m22 = m23 = m33 = 0.0
+            m11, m12, m13, m22, m23, m33, _ = _information(ys, used, e, w)
             for j in range(size):
                 if not used[e, w, j]:
                     continue
@@ -229,12 +238,6 @@ def _step_rows(ys, us, used, phi, direction, arm):  # pragma: no cover - compile
                 direction[e, w, 0] += a * r
                 direction[e, w, 1] += one * r
                 direction[e, w, 2] += s * r
-                m11 += a * a
-                m12 += a * one
-                m13 += a * s
-                m22 += one * one
-                m23 += one * s
-                m33 += s * s
             _, largest = _eig_extremes(m11, m12, m13, m22, m23, m33)
             scale = 1.0 / max(largest, 1e-9)
             for c in range(3):
