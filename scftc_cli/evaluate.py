@@ -204,9 +204,17 @@ def evaluate_stacked(
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
             runs[i] = _scored(spec, cell, part, rows)
         if inspect is not None:
-            for cell, part, at in zip(members, parts, part_rows(parts), strict=True):
-                inspect.take(cell, [inspect.reader(controller, cell, part, at)])
+            read_stack(inspect, controller, members, parts)
     return [runs[i] for i in range(len(cells))]
+
+
+def read_stack(
+    inspect: StackInspector, controller: Controller, cells: list[Cell], parts: list[Episodes]
+) -> None:
+    """``inspect`` reads ``controller`` after it flew ``parts`` (the episodes of ``cells``) as one
+    batch, and takes each cell's reading."""
+    for cell, part, rows in zip(cells, parts, part_rows(parts), strict=True):
+        inspect.take(cell, [inspect.reader(controller, cell, part, rows)])
 
 
 def evaluate_cells(

@@ -17,11 +17,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from scftc_cli.evaluate import Cell
+from scftc_cli.evaluate import Cell, read_stack
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.scoring import gate_outcomes
 from scftc_cli.sim.episodes import Episodes
-from scftc_cli.sim.rollout import part_rows, rollout, rollout_parts
+from scftc_cli.sim.rollout import rollout, rollout_parts
 from scftc_cli.spec import GateSpec
 
 
@@ -116,6 +116,5 @@ def detector_flight(
     controller = make()
     rollout_parts(controller, parts, progress=progress)
     readings = DetectorReadings()
-    for cell, part, rows in zip(cells, parts, part_rows(parts), strict=True):
-        readings.take(cell, [readings.reader(controller, cell, part, rows)])
+    read_stack(readings, controller, cells, parts)
     return readings.stats
