@@ -164,6 +164,12 @@ class Runner:
             progress.advance(weight(items[index[future.key]]))
         return self.client.gather(futures)
 
+    def share(self, value: Any) -> Any:
+        """``value`` sent to every worker once, as a future that ``map``'s items may hold (in a
+        tuple) in its place: a large argument common to many tasks (a whole study for its figures)
+        is then not copied into each task, which Dask warns of ("Sending large graph")."""
+        return self.client.scatter(value, broadcast=True, hash=False)
+
     def workers(self) -> int:
         """How many workers the cluster has now."""
         return max(1, len(self.client.scheduler_info().get("workers", {})))

@@ -838,8 +838,11 @@ def render(job: tuple[Study, str]) -> list[tuple[str, bytes]]:
 def write_figures(study: Study, out_dir: Path, runner: Runner | None = None) -> list[Path]:
     """Every figure of the study (``figure_stems``), PNG and SVG, into ``out_dir``; drawn on the
     cluster's workers, one figure a task, where a ``runner`` is given (the same bytes)."""
-    jobs = [(study, stem) for stem in figure_stems(study)]
-    rendered = runner.map(render, jobs) if runner is not None else [render(job) for job in jobs]
+    if runner is None:
+        rendered = [render((study, stem)) for stem in figure_stems(study)]
+    else:
+        shared = runner.share(study)  # once to each worker, not once per figure
+        rendered = runner.map(render, [(shared, stem) for stem in figure_stems(study)])
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, data in (file for files in rendered for file in files):

@@ -65,6 +65,24 @@ def _malloc_trim() -> str | None:
     return os.environ.get("MALLOC_TRIM_THRESHOLD_")
 
 
+def _checksum(job: tuple[np.ndarray, int]) -> float:
+    data, k = job
+    return float(data[k::7].sum())
+
+
+def test_a_shared_argument_reaches_every_task_once_without_a_large_graph(dask_runner: Runner):
+    """``Runner.share`` sends a large argument once; tasks holding its future in a tuple get the
+    value (the study's figures), and Dask sends no 20 MB graph (its "Sending large graph" warning)."""
+    import warnings
+
+    data = np.arange(2_500_000, dtype=np.float64)  # 20 MB, like v3's study
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the large-graph warning would raise here
+        shared = dask_runner.share(data)
+        sums = dask_runner.map(_checksum, [(shared, k) for k in range(3)])
+    assert sums == [_checksum((data, k)) for k in range(3)]
+
+
 def test_workers_start_without_dasks_malloc_trim_threshold(dask_runner):
     """Dask sets MALLOC_TRIM_THRESHOLD_ in its workers, which turns off glibc's adaptive mmap
     threshold and made the numpy-heavy controllers fly twice as slowly there (docs/scaling.md)."""
