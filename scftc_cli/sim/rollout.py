@@ -15,7 +15,7 @@ from scftc_cli.errors import ControllerError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.sim.episodes import Episodes, take_rows
 from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within
-from scftc_cli.sim.testbed import Testbed, testbed
+from scftc_cli.sim.testbed import Plant, Testbed, testbed
 
 
 @dataclass(frozen=True)
@@ -117,11 +117,14 @@ def rollout(
     record: bool = False,
     steps: int | None = None,
     progress: Progress = NO_PROGRESS,
+    plant: Plant | None = None,
 ) -> Rollout:
     """Fly ``controller`` through every episode of ``episodes`` at once.
 
     Args:
         backend: ``numpy`` (fused, default), ``reference`` or ``basilisk``.
+        plant: a plant holding ``episodes`` to fly instead of the backend's (the cross-check's
+            rounding twin, ``versions/v3/study.py``).
         record: keep full trajectories (states, errors, commands).
         steps: fly only this many steps (a prefix; default the whole episode).
         progress: advanced by one after each step.
@@ -129,7 +132,7 @@ def rollout(
     bed = testbed(episodes.benchmark)
     spec = bed.spec
     n, steps = episodes.n, spec.steps if steps is None else steps
-    plant = bed.plant(episodes, backend)
+    plant = bed.plant(episodes, backend) if plant is None else plant
     sensors = bed.sensors(episodes)
     controller.reset(n, bed.context(episodes, controller.privileged))
 

@@ -116,10 +116,17 @@ class CrosscheckResult:
     def gates_agree(self) -> bool:
         return all(v == 0 for g in self.groups for v in g.gate_disagreements.values())
 
+    def state_failures(self) -> list[str]:
+        """What in the compared state breaks the check, one line each (none: it holds): here the
+        largest difference over the tolerance; a version may bound each flight differently."""
+        # ``not >`` so that a NaN difference fails the check
+        if self.max_abs_state_diff <= self.tolerance:
+            return []
+        return [f"max_abs_state_diff {self.max_abs_state_diff:.3g} > {self.tolerance:g}"]
+
     @property
     def passed(self) -> bool:
-        # ``not >`` so that a NaN difference fails the check
-        return bool(self.max_abs_state_diff <= self.tolerance) and self.gates_agree
+        return not self.state_failures() and self.gates_agree
 
     def _state_diffs(self) -> dict[str, Any]:
         """Summary keys after the sigma and omega differences (a version's own state)."""

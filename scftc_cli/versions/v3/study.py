@@ -8,6 +8,15 @@ The one-step difference restarts the reference plant (``dynamics.V3Plant``) from
 Basilisk state, the inertial field held over the step included, applies the recorded command and
 compares the state it reaches with Basilisk's next one: the whole map from (state, command) to the
 next state, environment and rods included, checked at every step of every closed-loop run.
+
+Over a whole flight the backends' rounding differences grow as fast as the closed loop amplifies
+them, which depends on the flight: a fault-unaware ``pd`` holding a friction-faulted wheel at its
+speed limit amplifies one rounding unit to a radian. Each flight is therefore also flown on its
+*rounding twin*: the default backend with every state moved up by one rounding unit after every
+step (``RoundingTwinPlant``). How far the twin departs from the flight is what this flight does to
+one unit of rounding a step; the one-step bound lets the backends differ by ``TWIN_RATIO`` units of
+a wheel at its limit a step; so each flight is held to the larger of the tolerance and
+``TWIN_RATIO`` times its twin's departure. A flight that amplifies little is held to the tolerance.
 """
 
 from __future__ import annotations
@@ -18,13 +27,23 @@ from typing import Any, ClassVar
 import numpy as np
 
 from scftc_cli.evaluate import Cell
-from scftc_cli.sim.rollout import Rollout
-from scftc_cli.study.crosscheck import Plan, basilisk_backend, group_check, max_abs_diff, recorded, worst
+from scftc_cli.registry import make_controller
+from scftc_cli.sim.rollout import Rollout, rollout
+from scftc_cli.study.crosscheck import (
+    GroupCheck,
+    Plan,
+    basilisk_backend,
+    group_check,
+    max_abs_diff,
+    recorded,
+    worst,
+)
 from scftc_cli.versions.v2.sim.dynamics import motor_torque_nm
 from scftc_cli.versions.v2.study import WheelCrosscheckResult, WheelGroupCheck
 from scftc_cli.versions.v3.sim.dynamics import V3Plant
+from scftc_cli.versions.v3.sim.fast import FastV3Plant
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
-from scftc_cli.versions.v3.sim.mission import CONSTANTS
+from scftc_cli.versions.v3.sim.mission import CONSTANTS, MissionFastPlant
 from scftc_cli.versions.v3.spec import V3
 
 # The teacher (true gains and rod gains: the allocation changes at the onset; offsets, friction
@@ -61,26 +80,116 @@ TOLERANCE = 1e-8
 held its 400-step episodes; over v3's 2400 steps a fault-unaware ``pd`` driving a friction-faulted
 wheel into its speed limit ends 1.2e-9 apart on the first check flown (3 episodes: one step apart
 1.1e-13, one rounding unit of a 600 rad/s wheel). Chosen after that measurement, and paired with
-a bound v2 does not ask for: every one step from identical states within ``STEP_TOLERANCE``."""
+a bound v2 does not ask for: every one step from identical states within ``STEP_TOLERANCE``. A
+flight whose rounding twin departs by more is held to ``TWIN_RATIO`` times that departure."""
 STEP_TOLERANCE = 1e-12
 """The one-step tolerance (the largest of sigma, omega in rad/s and the wheel speeds in rad/s):
 a few rounding units of a wheel at its 628 rad/s limit (1.1e-13 each)."""
+TWIN_RATIO = STEP_TOLERANCE / float(np.spacing(CONSTANTS.wheels.omega_max_rad_s))
+"""How many rounding units of a wheel at its speed limit (1.14e-13 rad/s) the one-step bound allows
+the backends to differ by a step: 8.8. A flight is held to this many times its rounding twin's
+departure where that exceeds the tolerance (module docstring)."""
+
+
+class _NudgedFastPlant(FastV3Plant):
+    def step(self, k: int, command: np.ndarray) -> np.ndarray:
+        norm2 = super().step(k, command)
+        for state in (self.sigma, self.omega_rad_s, self.wheel_speed_rad_s):  # views of the state
+            np.nextafter(state, np.inf, out=state)
+        return norm2
+
+
+class RoundingTwinPlant(MissionFastPlant, _NudgedFastPlant):
+    """The default backend with sigma, omega and the wheel speeds moved up by one rounding unit
+    (``np.nextafter``) after every step: a flight's own response to rounding, without Basilisk."""
+
+
+def flight_state_diffs(a: Rollout, b: Rollout) -> np.ndarray:
+    """``(n,)`` each flight's largest state difference between two recorded runs, on v2's scale:
+    sigma, omega (rad/s) and the wheel speeds over ``Omega_max`` (NaN stays NaN)."""
+    omega_max = CONSTANTS.wheels.omega_max_rad_s
+    parts = [
+        np.abs(a.sigma - b.sigma),
+        np.abs(a.omega_rad_s - b.omega_rad_s),
+        np.abs(a.states["wheel_speed_rad_s"] - b.states["wheel_speed_rad_s"]) / omega_max,
+    ]
+    return np.max(np.concatenate([p.reshape(p.shape[0], -1) for p in parts], axis=1), axis=1)
+
+
+def flight_bounds(twin_departure: np.ndarray) -> np.ndarray:
+    """``(n,)`` each flight's bound on its state difference: the tolerance, or ``TWIN_RATIO``
+    times its rounding twin's departure where that is larger."""
+    return np.maximum(TOLERANCE, TWIN_RATIO * twin_departure)
+
+
+@dataclass(frozen=True)
+class MissionGroupCheck(WheelGroupCheck):
+    """A ``scftc-v3`` batch: v2's checks, and per flight its state difference and its bound.
+
+    Attributes:
+        flight_state_diff: per flight, the largest state difference between the backends (v2's
+            scale: sigma, omega, wheel speeds over ``Omega_max``).
+        twin_departure: per flight, the same between the default backend and its rounding twin.
+    """
+
+    flight_state_diff: tuple[float, ...]
+    twin_departure: tuple[float, ...]
+
+    def failing_flights(self) -> list[int]:
+        """The flights whose state difference is over their bound (or NaN)."""
+        bounds = flight_bounds(np.array(self.twin_departure))
+        return [i for i, (d, b) in enumerate(zip(self.flight_state_diff, bounds, strict=True)) if not d <= b]
 
 
 @dataclass(frozen=True)
 class MissionCrosscheckResult(WheelCrosscheckResult):
-    """A ``scftc-v3`` cross-check: v2's state and checks over v3's 2400-step episodes, with its own
-    closed-loop tolerance and a one-step one."""
+    """A ``scftc-v3`` cross-check: v2's state and checks over v3's 2400-step episodes, each flight
+    held to the tolerance or to its rounding twin's departure times ``TWIN_RATIO``, and every one
+    step to ``STEP_TOLERANCE``."""
 
     benchmark_version: ClassVar[str] = V3.version
 
+    groups: list[MissionGroupCheck]  # type: ignore[assignment]
     tolerance: float = TOLERANCE
     steps: int = V3.steps
+
+    def state_failures(self) -> list[str]:
+        return [
+            f"{g.controller} on {g.cell.label}, flight {i}: state difference {g.flight_state_diff[i]:.3g} "
+            f"> its bound {flight_bounds(np.array(g.twin_departure))[i]:.3g}"
+            for g in self.groups
+            for i in g.failing_flights()
+        ]
 
     @property
     def passed(self) -> bool:
         # ``not >`` so that a NaN difference fails the check
         return super().passed and bool(self.max_abs_step_diff <= STEP_TOLERANCE)
+
+    def _state_diffs(self) -> dict[str, Any]:
+        ratios = [
+            d / b
+            for g in self.groups
+            for d, b in zip(g.flight_state_diff, flight_bounds(np.array(g.twin_departure)), strict=True)
+        ]
+        return {
+            **super()._state_diffs(),
+            "max_state_diff_over_bound": worst(ratios),
+            "flights_held_to_twin": sum(
+                int(np.count_nonzero(flight_bounds(np.array(g.twin_departure)) > TOLERANCE))
+                for g in self.groups
+            ),
+            "twin_ratio": TWIN_RATIO,
+        }
+
+    def _group_doc(self, g: GroupCheck) -> dict[str, Any]:
+        assert isinstance(g, MissionGroupCheck)
+        return {
+            **super()._group_doc(g),
+            "flight_state_diff": list(g.flight_state_diff),
+            "twin_departure": list(g.twin_departure),
+            "flight_bound": flight_bounds(np.array(g.twin_departure)).tolist(),
+        }
 
 
 def one_step(episodes: AgileEpisodes, run: Rollout) -> tuple[float, int, int]:
@@ -119,10 +228,15 @@ def one_step(episodes: AgileEpisodes, run: Rollout) -> tuple[float, int, int]:
     return diff, saturated, cut
 
 
-def _mission_check(controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout) -> WheelGroupCheck:
+def _mission_check(
+    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout
+) -> MissionGroupCheck:
     step_diff, bsk_saturated, bsk_cut = one_step(episodes, bsk)
     _, ref_saturated, ref_cut = one_step(episodes, ref)
-    return WheelGroupCheck(
+    twin = rollout(
+        make_controller(controller, V3.version), episodes, record=True, plant=RoundingTwinPlant.of(episodes)
+    )
+    return MissionGroupCheck(
         **group_check(V3, controller, cell, episodes, ref, bsk),
         max_abs_step_diff=step_diff,
         max_abs_wheel_speed_diff=max_abs_diff(
@@ -130,6 +244,8 @@ def _mission_check(controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk
         ),
         saturated_steps={"numpy": ref_saturated, "basilisk": bsk_saturated},
         cut_wheel_steps={"numpy": ref_cut, "basilisk": bsk_cut},
+        flight_state_diff=tuple(float(d) for d in flight_state_diffs(ref, bsk)),
+        twin_departure=tuple(float(d) for d in flight_state_diffs(ref, twin)),
     )
 
 
