@@ -751,11 +751,20 @@ def encode(fig: Figure) -> list[tuple[str, bytes]]:
 
 def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``stem.png`` and ``stem.svg`` (``encode``) and close it."""
+    return _write(out_dir, _files(stem, fig))
+
+
+def _files(stem: str, fig: Figure) -> list[tuple[str, bytes]]:
+    """``[(stem.png, bytes), (stem.svg, bytes)]`` of ``fig`` (``encode``, which closes it)."""
+    return [(stem + suffix, data) for suffix, data in encode(fig)]
+
+
+def _write(out_dir: Path, files: list[tuple[str, bytes]]) -> list[Path]:
+    """Each ``(name, bytes)`` into ``out_dir`` (made if missing); the paths, in order."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for suffix, data in encode(fig):
-        paths.append(out_dir / f"{stem}{suffix}")
-        paths[-1].write_bytes(data)
+    paths = [out_dir / name for name, _ in files]
+    for path, (_, data) in zip(paths, files, strict=True):
+        path.write_bytes(data)
     return paths
 
 
@@ -832,7 +841,7 @@ def render(job: tuple[Study, str]) -> list[tuple[str, bytes]]:
     """``(study, stem)`` -> the figure's files ``[(name, bytes)]`` (``draw``, ``encode``): a pure
     function of the study, so a cluster's worker draws the same bytes as this process."""
     study, stem = job
-    return [(stem + suffix, data) for suffix, data in encode(draw(study, stem))]
+    return _files(stem, draw(study, stem))
 
 
 def write_figures(study: Study, out_dir: Path, runner: Runner | None = None) -> list[Path]:
@@ -843,9 +852,4 @@ def write_figures(study: Study, out_dir: Path, runner: Runner | None = None) -> 
     else:
         shared = runner.share(study)  # once to each worker, not once per figure
         rendered = runner.map(render, [(shared, stem) for stem in figure_stems(study)])
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, data in (file for files in rendered for file in files):
-        paths.append(out_dir / name)
-        paths[-1].write_bytes(data)
-    return paths
+    return _write(out_dir, [file for files in rendered for file in files])

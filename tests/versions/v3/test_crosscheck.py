@@ -12,6 +12,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+import scftc_cli.study.crosscheck as crosschecking
+from scftc_cli.commands.app import app
 from scftc_cli.registry import make_controller
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
@@ -107,6 +109,19 @@ def test_v3_verdict_holds_each_flight_to_the_tolerance_or_its_twins_departure():
     )
     assert not result(_mission_group(diff=float("nan"), twin=1e-13)).passed
     assert not result(_mission_group(diff=0.0, twin=0.0, step=2 * STEP_TOLERANCE)).passed
+
+
+def test_the_command_names_the_flight_over_its_bound_in_one_line_and_exits_1(monkeypatch):
+    from typer.testing import CliRunner
+
+    failing = MissionCrosscheckResult(1, ("pd",), [_mission_group(diff=20.0, twin=1.55)], {}, "2.12.1")
+    monkeypatch.setattr(crosschecking, "crosscheck", lambda *args, **kwargs: failing)
+    result = CliRunner().invoke(app, ["crosscheck", "--benchmark", V3.version, "--episodes", "1"])
+    assert result.exit_code == 1
+    assert '"passed": false' in result.stdout and '"flight_bound"' in result.stdout
+    (line,) = result.stderr.strip().splitlines()
+    assert "crosscheck failed: pd on friction, flight 0: state difference 20 > its bound 13.6" in line
+    assert "one-step max_abs_step_diff 1e-13" in line
 
 
 @pytest.mark.basilisk
