@@ -238,17 +238,21 @@ class Plan:
         spec: the version.
         groups: the cells, in the order episodes are dealt to them.
         adaptive_preference: the default adaptive controller: the first buildable one.
-        check: builds a batch's ``GroupCheck`` from its episodes and both recorded rollouts.
+        check: builds a batch's ``GroupCheck`` from its episodes and both recorded rollouts,
+            advancing the progress by each step it simulates itself.
         result: the ``CrosscheckResult`` type of the version.
         basilisk_version: imports the Basilisk backend and names ``bsk``'s version.
+        check_flights: how many whole flights' steps ``check`` simulates a batch (v3: two
+            one-step replays and the rounding twin), for the progress bar's total.
     """
 
     spec: BenchmarkSpec
     groups: tuple[Cell, ...]
     adaptive_preference: tuple[str, ...]
-    check: Callable[[str, Cell, Any, Rollout, Rollout], GroupCheck]
+    check: Callable[[str, Cell, Any, Rollout, Rollout, Progress], GroupCheck]
     result: type[CrosscheckResult]
     basilisk_version: Callable[[], str]
+    check_flights: int = 0
 
 
 def plan(benchmark: str = DEFAULT_BENCHMARK) -> Plan:
@@ -273,7 +277,8 @@ def crosscheck(
             of them).
         controllers: registered names; ``default_controllers(benchmark)`` when ``None``.
         benchmark: the version whose plant and taxonomy are flown.
-        progress: advanced once per simulated step of either backend.
+        progress: advanced once per simulated step of either backend and of the check's own
+            flights.
     """
     if n_episodes < 1:
         raise UsageError("--episodes must be at least 1")
@@ -300,7 +305,7 @@ def crosscheck(
                     make_controller(name, version), episodes, backend=backend, record=True, progress=progress
                 )
                 seconds[backend] += time.perf_counter() - start
-            checks.append(chosen.check(name, cell, episodes, runs["numpy"], runs["basilisk"]))
+            checks.append(chosen.check(name, cell, episodes, runs["numpy"], runs["basilisk"], progress))
     return chosen.result(
         episodes=n_episodes,
         controllers=controllers,
@@ -312,7 +317,7 @@ def crosscheck(
 
 
 def total_steps(n_episodes: int, controllers: Sequence[str], benchmark: str = DEFAULT_BENCHMARK) -> int:
-    """Steps a cross-check simulates, both backends together (for a progress bar)."""
+    """Steps a cross-check simulates, both backends and the checks together (for a progress bar)."""
     chosen = plan(benchmark)
     batches = sum(1 for c in split_episodes(n_episodes, len(chosen.groups)) if c > 0) * len(controllers)
-    return 2 * batches * chosen.spec.steps
+    return (len(BACKENDS) + chosen.check_flights) * batches * chosen.spec.steps

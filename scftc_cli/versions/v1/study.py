@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from scftc_cli.evaluate import Cell
+from scftc_cli.protocol import Progress
 from scftc_cli.sim.rollout import Rollout
 from scftc_cli.study.crosscheck import (
     CrosscheckResult,
@@ -68,7 +69,9 @@ def one_step_diff(episodes: RigidEpisodes, run: Rollout) -> float:
     return worst((max_abs_diff(sigma, flat(sigma_run[:, 1:])), max_abs_diff(omega, flat(omega_run[:, 1:]))))
 
 
-def _rigid_check(controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout) -> GroupCheck:
+def _rigid_check(
+    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout, _progress: Progress
+) -> GroupCheck:
     return GroupCheck(
         **group_check(V1, controller, cell, episodes, ref, bsk),
         max_abs_step_diff=one_step_diff(episodes, bsk),

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from scftc_cli.evaluate import Cell
+from scftc_cli.protocol import Progress
 from scftc_cli.sim.rollout import Rollout
 from scftc_cli.study.crosscheck import (
     BACKENDS,
@@ -183,7 +184,9 @@ def saturation(episodes: WheelEpisodes, run: Rollout) -> tuple[int, int]:
     return int(np.count_nonzero(saturated)), int(np.count_nonzero(motor != unlimited))
 
 
-def _wheel_check(controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout) -> WheelGroupCheck:
+def _wheel_check(
+    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout, _progress: Progress
+) -> WheelGroupCheck:
     counts = {"numpy": saturation(episodes, ref), "basilisk": saturation(episodes, bsk)}
     return WheelGroupCheck(
         **group_check(V2, controller, cell, episodes, ref, bsk),

@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from scftc_cli.evaluate import Cell
+from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import Rollout, rollout
 from scftc_cli.study.crosscheck import (
@@ -192,7 +193,9 @@ class MissionCrosscheckResult(WheelCrosscheckResult):
         }
 
 
-def one_step(episodes: AgileEpisodes, run: Rollout) -> tuple[float, int, int]:
+def one_step(
+    episodes: AgileEpisodes, run: Rollout, progress: Progress = NO_PROGRESS
+) -> tuple[float, int, int]:
     """``(largest one-step difference, saturated episode-steps, cut wheel-steps)`` of a recorded
     Basilisk run: the reference plant restarted at every recorded state (attitude, rates, wheel
     speeds, the inertial field held over the step) with the recorded command; the difference over
@@ -217,6 +220,7 @@ def one_step(episodes: AgileEpisodes, run: Rollout) -> tuple[float, int, int]:
         saturated += int(np.count_nonzero(np.any(np.abs(speed) >= wheels.omega_max_rad_s, axis=1)))
         cut += int(np.count_nonzero(motor != unlimited))
         plant.step(k, commands[:, k])
+        progress.advance(1)
         diff = worst(
             (
                 diff,
@@ -229,12 +233,16 @@ def one_step(episodes: AgileEpisodes, run: Rollout) -> tuple[float, int, int]:
 
 
 def _mission_check(
-    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout
+    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout, progress: Progress
 ) -> MissionGroupCheck:
-    step_diff, bsk_saturated, bsk_cut = one_step(episodes, bsk)
-    _, ref_saturated, ref_cut = one_step(episodes, ref)
+    step_diff, bsk_saturated, bsk_cut = one_step(episodes, bsk, progress)
+    _, ref_saturated, ref_cut = one_step(episodes, ref, progress)
     twin = rollout(
-        make_controller(controller, V3.version), episodes, record=True, plant=RoundingTwinPlant.of(episodes)
+        make_controller(controller, V3.version),
+        episodes,
+        record=True,
+        progress=progress,
+        plant=RoundingTwinPlant.of(episodes),
     )
     return MissionGroupCheck(
         **group_check(V3, controller, cell, episodes, ref, bsk),
@@ -256,4 +264,5 @@ CROSSCHECK = Plan(
     _mission_check,
     MissionCrosscheckResult,
     basilisk_backend("scftc_cli.versions.v3.sim.basilisk"),
+    check_flights=3,  # the one-step replays of both runs and the rounding twin
 )

@@ -14,10 +14,11 @@ import pytest
 
 import scftc_cli.study.crosscheck as crosschecking
 from scftc_cli.commands.app import app
+from scftc_cli.protocol import Progress
 from scftc_cli.registry import make_controller
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.study.crosscheck import crosscheck, default_controllers, plan
+from scftc_cli.study.crosscheck import crosscheck, default_controllers, plan, total_steps
 from scftc_cli.versions.v3.spec import V3
 from scftc_cli.versions.v3.study import (
     GROUPS,
@@ -40,6 +41,8 @@ def test_the_groups_cover_every_held_out_class_and_sensor_fault():
     assert {g.sensor for g in GROUPS if g.sensor is not None} == set(V3.sensor_faults)
     assert all(g.split == "test" for g in GROUPS)
     assert default_controllers(V3.version) == ("pd", "teacher")
+    # the progress total counts the check's own flights: two one-step replays and the twin
+    assert total_steps(20, ("pd", "teacher"), V3.version) == (2 + 3) * len(GROUPS) * 2 * V3.steps
 
 
 def test_the_one_step_map_lands_on_the_numpy_plants_states_exactly_and_sees_a_late_fault():
@@ -127,8 +130,16 @@ def test_the_command_names_the_flight_over_its_bound_in_one_line_and_exits_1(mon
 @pytest.mark.basilisk
 def test_the_cross_check_passes_on_a_handful_of_episodes():
     pytest.importorskip("Basilisk")
+
     # pd alone (the teacher's runs cost as much and saturate nothing): a reversed and a friction wheel
-    result = crosscheck(2, ("pd",), benchmark=V3.version)
+    class Count(Progress):
+        steps = 0.0
+
+        def advance(self, amount: float = 1.0) -> None:
+            Count.steps += amount
+
+    result = crosscheck(2, ("pd",), benchmark=V3.version, progress=Count())
+    assert Count.steps == total_steps(2, ("pd",), V3.version)  # the bar ends at its total
     doc = result.dump()
     assert doc["benchmark_version"] == V3.version and doc["steps"] == V3.steps and doc["rollouts"] == 2
     assert doc["tolerance"] == TOLERANCE
