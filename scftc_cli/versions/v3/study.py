@@ -42,7 +42,6 @@ from scftc_cli.study.crosscheck import (
 from scftc_cli.versions.v2.sim.dynamics import motor_torque_nm
 from scftc_cli.versions.v2.study import WheelCrosscheckResult, WheelGroupCheck
 from scftc_cli.versions.v3.sim.dynamics import V3Plant
-from scftc_cli.versions.v3.sim.fast import FastV3Plant
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
 from scftc_cli.versions.v3.sim.mission import CONSTANTS, MissionFastPlant
 from scftc_cli.versions.v3.spec import V3
@@ -92,17 +91,15 @@ the backends to differ by a step: 8.8. A flight is held to this many times its r
 departure where that exceeds the tolerance (module docstring)."""
 
 
-class _NudgedFastPlant(FastV3Plant):
-    def step(self, k: int, command: np.ndarray) -> np.ndarray:
-        norm2 = super().step(k, command)
-        for state in (self.sigma, self.omega_rad_s, self.wheel_speed_rad_s):  # views of the state
-            np.nextafter(state, np.inf, out=state)
-        return norm2
-
-
-class RoundingTwinPlant(MissionFastPlant, _NudgedFastPlant):
+class RoundingTwinPlant(MissionFastPlant):
     """The default backend with sigma, omega and the wheel speeds moved up by one rounding unit
     (``np.nextafter``) after every step: a flight's own response to rounding, without Basilisk."""
+
+    def step(self, k: int, command: np.ndarray) -> np.ndarray:
+        error_norm2 = super().step(k, command)
+        for state in (self.sigma, self.omega_rad_s, self.wheel_speed_rad_s):  # views of the state
+            np.nextafter(state, np.inf, out=state)
+        return error_norm2
 
 
 def flight_state_diffs(a: Rollout, b: Rollout) -> np.ndarray:
@@ -136,10 +133,15 @@ class MissionGroupCheck(WheelGroupCheck):
     flight_state_diff: tuple[float, ...]
     twin_departure: tuple[float, ...]
 
+    @property
+    def flight_bound(self) -> tuple[float, ...]:
+        """Per flight, the bound on its state difference (``flight_bounds``)."""
+        return tuple(flight_bounds(np.array(self.twin_departure)).tolist())
+
     def failing_flights(self) -> list[int]:
         """The flights whose state difference is over their bound (or NaN)."""
-        bounds = flight_bounds(np.array(self.twin_departure))
-        return [i for i, (d, b) in enumerate(zip(self.flight_state_diff, bounds, strict=True)) if not d <= b]
+        pairs = zip(self.flight_state_diff, self.flight_bound, strict=True)
+        return [i for i, (d, b) in enumerate(pairs) if not d <= b]
 
 
 @dataclass(frozen=True)
@@ -157,7 +159,7 @@ class MissionCrosscheckResult(WheelCrosscheckResult):
     def state_failures(self) -> list[str]:
         return [
             f"{g.controller} on {g.cell.label}, flight {i}: state difference {g.flight_state_diff[i]:.3g} "
-            f"> its bound {flight_bounds(np.array(g.twin_departure))[i]:.3g}"
+            f"> its bound {g.flight_bound[i]:.3g}"
             for g in self.groups
             for i in g.failing_flights()
         ]
@@ -168,18 +170,11 @@ class MissionCrosscheckResult(WheelCrosscheckResult):
         return super().passed and bool(self.max_abs_step_diff <= STEP_TOLERANCE)
 
     def _state_diffs(self) -> dict[str, Any]:
-        ratios = [
-            d / b
-            for g in self.groups
-            for d, b in zip(g.flight_state_diff, flight_bounds(np.array(g.twin_departure)), strict=True)
-        ]
+        pairs = [pair for g in self.groups for pair in zip(g.flight_state_diff, g.flight_bound, strict=True)]
         return {
             **super()._state_diffs(),
-            "max_state_diff_over_bound": worst(ratios),
-            "flights_held_to_twin": sum(
-                int(np.count_nonzero(flight_bounds(np.array(g.twin_departure)) > TOLERANCE))
-                for g in self.groups
-            ),
+            "max_state_diff_over_bound": worst(d / b for d, b in pairs),
+            "flights_held_to_twin": sum(1 for _, b in pairs if b > TOLERANCE),
             "twin_ratio": TWIN_RATIO,
         }
 
@@ -189,7 +184,7 @@ class MissionCrosscheckResult(WheelCrosscheckResult):
             **super()._group_doc(g),
             "flight_state_diff": list(g.flight_state_diff),
             "twin_departure": list(g.twin_departure),
-            "flight_bound": flight_bounds(np.array(g.twin_departure)).tolist(),
+            "flight_bound": list(g.flight_bound),
         }
 
 
