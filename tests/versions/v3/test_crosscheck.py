@@ -30,6 +30,7 @@ from scftc_cli.versions.v3.study import (
     RoundingTwinPlant,
     flight_state_diffs,
     one_step,
+    speed_limits,
 )
 
 BED = testbeds.testbed(V3.version)
@@ -41,8 +42,8 @@ def test_the_groups_cover_every_held_out_class_and_sensor_fault():
     assert {g.sensor for g in GROUPS if g.sensor is not None} == set(V3.sensor_faults)
     assert all(g.split == "test" for g in GROUPS)
     assert default_controllers(V3.version) == ("pd", "teacher")
-    # the progress total counts the check's own flights: two one-step replays and the twin
-    assert total_steps(20, ("pd", "teacher"), V3.version) == (2 + 3) * len(GROUPS) * 2 * V3.steps
+    # the progress total counts the check's own flights: the Basilisk run's one-step replay and the twin
+    assert total_steps(20, ("pd", "teacher"), V3.version) == (2 + 2) * len(GROUPS) * 2 * V3.steps
 
 
 def test_the_one_step_map_lands_on_the_numpy_plants_states_exactly_and_sees_a_late_fault():
@@ -51,6 +52,7 @@ def test_the_one_step_map_lands_on_the_numpy_plants_states_exactly_and_sees_a_la
     diff, saturated, cut = one_step(episodes, run)
     assert diff == 0.0  # the fused kernel is the reference to the bit, environment and rods included
     assert saturated > 0 and cut > 0  # pd drives the faulted wheel into its speed limit
+    assert speed_limits(episodes, run) == (saturated, cut)  # read off the record, no replay
     late = dataclasses.replace(
         episodes, fault=dataclasses.replace(episodes.fault, onset_step=episodes.fault.onset_step + 1)
     )
