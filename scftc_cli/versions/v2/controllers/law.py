@@ -268,6 +268,33 @@ def allocation(gain_hat: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:
     return pseudo_inverse(effective)
 
 
+class HeldAllocation:
+    """``allocation`` for a controller that calls it every step: recomputed only on the rows whose
+    gains differ, bit for bit, from the last call's. A row's matrix depends on its own gains alone
+    (a 3x3 inverse per row), so the result is ``allocation``'s to the bit, and a gain that holds
+    from step to step (a latched estimate, a known fault) costs no inverse."""
+
+    def __init__(self, wheels: WheelKnowledge) -> None:
+        self.wheels = wheels
+        self.last: tuple[np.ndarray, np.ndarray] | None = None  # (gains, matrix) of the last call
+
+    def __call__(self, gain_hat: np.ndarray) -> np.ndarray:
+        gain = np.array(gain_hat, dtype=np.float64)  # a copy: kept for the next call
+        last = self.last
+        if last is None or last[0].shape != gain.shape:
+            matrix = allocation(gain, self.wheels)
+        else:
+            changed = np.any(gain.view(np.int64) != last[0].view(np.int64), axis=1)  # -0.0 apart
+            if changed.all():
+                matrix = allocation(gain, self.wheels)
+            else:
+                matrix = last[1].copy()
+                if changed.any():
+                    matrix[changed] = allocation(gain[changed], self.wheels)
+        self.last = (gain, matrix)
+        return matrix
+
+
 def allocate(
     demand_nm: np.ndarray,
     allocation_matrix: np.ndarray,

@@ -61,8 +61,8 @@ from scftc_cli.versions.v2.controllers.estimators import WheelSample, WheelTorqu
 from scftc_cli.versions.v2.controllers.latch import CusumDetector, WheelLatch, noise_sigma
 from scftc_cli.versions.v2.controllers.law import (
     AttitudeFuser,
+    HeldAllocation,
     allocate,
-    allocation,
     friction_nm,
     split_observation,
     torque_demand,
@@ -244,6 +244,7 @@ class StudentController(Controller):
         self.context, self.wheels = context, wheels_of(context)
         self.fuser = AttitudeFuser(n)
         self.estimator = WheelEstimator(self.net, self.config, context)
+        self.held_allocation = HeldAllocation(self.wheels)
 
     def gain_hat(self, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
         """The ``(n, m)`` gains the allocation uses (the trainer mixes in the teacher's)."""
@@ -262,7 +263,7 @@ class StudentController(Controller):
         coulomb = wheels.coulomb_nm + offset[..., 1] * wheels.u_max_nm
         effective = student_effective_gain(gain, self.config.dead_below)
         friction = friction_nm(tach, coulomb, wheels)
-        command = allocate(demand, allocation(effective, wheels), effective, friction, bias, wheels)
+        command = allocate(demand, self.held_allocation(effective), effective, friction, bias, wheels)
         est.hold(command, offset)
         return command
 

@@ -18,7 +18,13 @@ import numpy as np
 
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.mrp import cross
-from scftc_cli.versions.v2.controllers.law import AttitudeFuser, allocate, allocation, friction_nm
+from scftc_cli.versions.v2.controllers.law import (
+    AttitudeFuser,
+    HeldAllocation,
+    allocate,
+    allocation,
+    friction_nm,
+)
 from scftc_cli.versions.v2.sim.faults import sensor_code
 from scftc_cli.versions.v2.spec import V2
 from scftc_cli.versions.v3.controllers import fused
@@ -60,6 +66,7 @@ class MissionLaw(Controller):
         self.m = len(self.wheels.spin_axes)
         self.fuser = AttitudeFuser(n)
         self.nominal = allocation(np.ones((n, self.m)), self.wheels)
+        self.held_allocation = HeldAllocation(self.wheels)
 
     # what the controller believes of the plant at the current step (nominal by default)
     def wheel_model(self, tach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -68,8 +75,9 @@ class MissionLaw(Controller):
         return ones, np.zeros((self.n, self.m)), friction_nm(tach, self.wheels.coulomb_nm, self.wheels)
 
     def allocation(self, gain: np.ndarray) -> np.ndarray:
-        """``pinv(G diag(gain))`` ``(n, m, 3)`` for believed gains ``(n, m)`` (``law.allocation``)."""
-        return allocation(gain, self.wheels)
+        """``pinv(G diag(gain))`` ``(n, m, 3)`` for believed gains ``(n, m)`` (``law.allocation``,
+        recomputed only on the rows whose gains changed: ``HeldAllocation``)."""
+        return self.held_allocation(gain)
 
     def rod_gain(self) -> np.ndarray:
         return np.ones((self.n, 3))

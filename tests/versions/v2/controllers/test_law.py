@@ -159,3 +159,27 @@ def test_the_compiled_vote_is_its_numpy_definition_bit_for_bit():
     np.testing.assert_array_equal(count, count_want)
     assert set(np.unique(count)) == {0, 1, 2, 3}
     assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the bits, signed zeros included
+
+
+def test_held_allocation_is_the_allocation_to_the_bit_and_recomputes_only_changed_rows(monkeypatch):
+    rng = np.random.default_rng(3)
+    held = law.HeldAllocation(WHEELS)
+    computed: list[int] = []
+    plain = law.allocation
+
+    def counting(gain, wheels):
+        computed.append(len(gain))
+        return plain(gain, wheels)
+
+    monkeypatch.setattr(law, "allocation", counting)
+    gain = rng.uniform(-1.0, 1.5, size=(50, 4))
+    gain[30] = 0.0  # a wheel estimated dead in row 30
+    for step in range(6):
+        if step == 2:
+            gain[:10] = rng.uniform(0.0, 1.0, size=(10, 4))  # ten rows change, forty hold
+        if step == 3:
+            gain[30, 1] = -0.0  # equal to 0.0, another bit pattern: recomputed
+        if step == 5:
+            gain = gain[:20].copy()  # a new batch size starts over
+        assert held(gain).tobytes() == plain(gain, WHEELS).tobytes()
+    assert computed == [50, 10, 1, 20]
