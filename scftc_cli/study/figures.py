@@ -275,7 +275,7 @@ def trajectories(
         figsize=(4.2 * len(families) + 1.5, 2.6 * len(classes) + 1.2),
         squeeze=False,
     )  # not sharex/sharey: every panel gets the same limits below, and matplotlib's shared-axes
-    # bookkeeping over a grid of forty panels was most of this figure's drawing time
+    # bookkeeping over a grid of many panels (44 on v3) was most of this figure's drawing time
     for row, fault_class in enumerate(classes):
         panel = [t for t in trajs if t.fault_class == fault_class]
         for col, (family, title) in enumerate(families):
