@@ -242,8 +242,8 @@ class Plan:
             advancing the progress by each step it simulates itself.
         result: the ``CrosscheckResult`` type of the version.
         basilisk_version: imports the Basilisk backend and names ``bsk``'s version.
-        check_flights: how many whole flights' steps ``check`` simulates a batch (v3: two
-            one-step replays and the rounding twin), for the progress bar's total.
+        check_flights: how many whole flights' steps ``check`` simulates a batch (v3: the
+            Basilisk run's one-step replay and the rounding twin), for the progress bar's total.
     """
 
     spec: BenchmarkSpec

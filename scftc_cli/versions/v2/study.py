@@ -176,12 +176,21 @@ def wheel_one_step_diff(episodes: WheelEpisodes, run: Rollout) -> float:
     return worst(max_abs_diff(x, after[name]) for name, x in zip(names, stepped, strict=True))
 
 
+def limit_counts(
+    speed: np.ndarray, motor: np.ndarray, unlimited: np.ndarray, omega_max_rad_s: float
+) -> tuple[int, int]:
+    """``(saturated episode-steps, cut wheel-steps)``: the episode-steps that start with a wheel at
+    or above ``omega_max_rad_s``, and the wheel-steps whose ``motor`` torque differs from the
+    torque ``unlimited`` by the speed limit; arrays ``(..., m)`` over the wheels, one row an
+    episode-step (every version's ``WheelGroupCheck`` counts)."""
+    saturated = np.any(np.abs(speed) >= omega_max_rad_s, axis=-1)
+    return int(np.count_nonzero(saturated)), int(np.count_nonzero(motor != unlimited))
+
+
 def saturation(episodes: WheelEpisodes, run: Rollout) -> tuple[int, int]:
     """``(saturated episode-steps, cut wheel-steps)`` of a recorded v2 run (see ``WheelGroupCheck``)."""
-    speed = run.states["wheel_speed_rad_s"][:, :-1]
     motor, unlimited, _ = wheel_torques(episodes, run)
-    saturated = np.any(np.abs(speed) >= _omega_max_rad_s(), axis=2)
-    return int(np.count_nonzero(saturated)), int(np.count_nonzero(motor != unlimited))
+    return limit_counts(run.states["wheel_speed_rad_s"][:, :-1], motor, unlimited, _omega_max_rad_s())
 
 
 def _wheel_check(

@@ -40,7 +40,7 @@ from scftc_cli.study.crosscheck import (
     worst,
 )
 from scftc_cli.versions.v2.sim.dynamics import motor_torque_nm
-from scftc_cli.versions.v2.study import WheelCrosscheckResult, WheelGroupCheck
+from scftc_cli.versions.v2.study import WheelCrosscheckResult, WheelGroupCheck, limit_counts
 from scftc_cli.versions.v3.sim.dynamics import V3Plant
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
 from scftc_cli.versions.v3.sim.mission import CONSTANTS, MissionFastPlant
@@ -196,8 +196,7 @@ def _limits_at(plant: V3Plant, k: int, command: np.ndarray, speed: np.ndarray) -
     gain, bias, _, _ = plant.faults_at(k)
     motor = motor_torque_nm(command, gain, bias, speed, wheels.u_max_nm, wheels.omega_max_rad_s)
     unlimited = motor_torque_nm(command, gain, bias, speed, wheels.u_max_nm, np.inf)
-    saturated = int(np.count_nonzero(np.any(np.abs(speed) >= wheels.omega_max_rad_s, axis=1)))
-    return saturated, int(np.count_nonzero(motor != unlimited))
+    return limit_counts(speed, motor, unlimited, wheels.omega_max_rad_s)
 
 
 def speed_limits(episodes: AgileEpisodes, run: Rollout) -> tuple[int, int]:
