@@ -47,6 +47,7 @@ Shapes: ``n`` episodes x ``m`` wheels; units as above.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -178,7 +179,10 @@ def _friction_shape(
         e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
         for _ in range(iterations):
             miss, slope, _s0, _s1, _s2, _s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
-            e = e - miss / slope
+            e_next = e - miss / slope
+            if e_next == e and math.copysign(1.0, e_next) == math.copysign(1.0, e):
+                break  # a fixed point, bit for bit: the remaining iterations would repeat it
+            e = e_next
         miss, _slope, s0, s1, s2, s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
         total = 0.0 + 1.0 * _clip_unit(s0 / w)
         total = total + 2.0 * _clip_unit(s1 / w)
@@ -383,17 +387,17 @@ class WheelMonitor:
         return x, tau, testable, linear
 
     def _solve(self, rows: np.ndarray | None = None) -> None:
-        """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance."""
-        lam = self.prior_weight
-        info = self.A + lam[..., :, None] * np.eye(3)
-        cov = inv3(info)
-        theta = np.einsum("nmij,nmj->nmi", cov, self.y + lam * self.prior)
-        theta, cov = clamp(theta, cov)
+        """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance: of every wheel, or, with
+        ``rows`` ``(n, m)``, of those wheels only (computed on the episodes that hold one: each
+        wheel's solve is its own, so the same bits as solving the whole batch)."""
         if rows is None:
-            self.cov, self.theta = cov, theta
-        else:
-            self.cov = np.where(rows[..., None, None], cov, self.cov)
-            self.theta = np.where(rows[..., None], theta, self.theta)
+            self.theta, self.cov = _solved(self.A, self.y, self.prior_weight, self.prior)
+            return
+        at = np.flatnonzero(rows.any(axis=1))
+        theta, cov = _solved(self.A[at], self.y[at], self.prior_weight[at], self.prior[at])
+        self.cov, self.theta = self.cov.copy(), self.theta.copy()
+        self.cov[at] = np.where(rows[at][..., None, None], cov, self.cov[at])
+        self.theta[at] = np.where(rows[at][..., None], theta, self.theta[at])
 
     def observe(self, tach: np.ndarray, gyro: np.ndarray) -> None:
         """Fold in the step just flown: test, accumulate, re-identify."""
@@ -436,37 +440,57 @@ class WheelMonitor:
 
     def _on_alarm(self, alarm: np.ndarray) -> np.ndarray:
         """Decide, per alarmed wheel, between new excitation (keep the window) and a change
-        (restart it at the estimated change time); returns the confirmed changes ``(n, m)``."""
+        (restart it at the estimated change time); returns the confirmed changes ``(n, m)``.
+
+        Computed on the episodes with an alarmed wheel only (a few of the batch at any step):
+        every quantity below is a wheel's own, so the same bits as over the whole batch."""
         s = self.s
-        side = np.argmax(self.cusum, axis=-1)
-        since = np.take_along_axis(self.since_zero, side[..., None], axis=-1)[..., 0]
+        at = np.flatnonzero(alarm.any(axis=1))  # episodes with an alarmed wheel
+        rung = alarm[at]
+        cusum, theta = self.cusum[at], self.theta[at]
+        side = np.argmax(cusum, axis=-1)
+        since = np.take_along_axis(self.since_zero[at], side[..., None], axis=-1)[..., 0]
         since = np.clip(since, 1, s.buffer)
         # the change time: the newest j samples (j <= since) whose mean residual is the most
         # significant, (sum z)^2 / j, the GLR of a mean shift of unknown size
         age = (self.k - np.arange(s.buffer)[:, None, None]) % s.buffer  # (B, 1, 1): 0 = newest
         order = np.argsort(age[:, 0, 0])  # slots from the newest to the oldest
-        z = self.buf_z[order]  # (B, n, m), newest first
-        tested = self.buf_tested[order].cumsum(axis=0)
+        buf_x, buf_tau, buf_ok = self.buf_x[:, at], self.buf_tau[:, at], self.buf_ok[:, at]
+        z = self.buf_z[:, at][order]  # (B, a, m), newest first
+        tested = self.buf_tested[:, at][order].cumsum(axis=0)
         glr = z.cumsum(axis=0) ** 2 / np.maximum(tested, 1)
         j = np.arange(1, s.buffer + 1)[:, None, None]
         glr = np.where(j <= since[None], glr, -1.0)
-        length = np.argmax(glr, axis=0) + 1  # (n, m)
-        inside = (age < length[None]) & self.buf_ok  # (B, n, m)
-        fitted = np.einsum("bnmi,nmi->bnm", self.buf_x, self.theta)
-        resid = (self.buf_tau - fitted) / self.sigma
+        length = np.argmax(glr, axis=0) + 1  # (a, m)
+        inside = (age < length[None]) & buf_ok  # (B, a, m)
+        fitted = np.einsum("bnmi,nmi->bnm", buf_x, theta)
+        resid = (buf_tau - fitted) / self.sigma
         count = inside.sum(axis=0)
         mse = (resid * resid * inside).sum(axis=0) / np.maximum(count, 1)
-        change = alarm & ((mse > s.consistent) | (count == 0))
-        if change.any():
-            xw = self.buf_x * inside[..., None] / self.sigma
+        changed = rung & ((mse > s.consistent) | (count == 0))
+        change = np.zeros_like(alarm)
+        change[at] = changed
+        if changed.any():
+            xw = buf_x * inside[..., None] / self.sigma
             A_new = np.einsum("bnmi,bnmj->nmij", xw, xw)
-            y_new = np.einsum("bnmi,bnm->nmi", xw, self.buf_tau / self.sigma)
-            weights = self.change_weight
-            self.A = np.where(change[..., None, None], A_new, self.A)
-            self.y = np.where(change[..., None], y_new, self.y)
-            self.prior = np.where(change[..., None], self.theta, self.prior)
-            self.prior_weight = np.where(change[..., None], weights, self.prior_weight)
+            y_new = np.einsum("bnmi,bnm->nmi", xw, buf_tau / self.sigma)
+            self.A, self.y = self.A.copy(), self.y.copy()
+            self.prior, self.prior_weight = self.prior.copy(), self.prior_weight.copy()
+            self.A[at] = np.where(changed[..., None, None], A_new, self.A[at])
+            self.y[at] = np.where(changed[..., None], y_new, self.y[at])
+            self.prior[at] = np.where(changed[..., None], theta, self.prior[at])
+            self.prior_weight[at] = np.where(changed[..., None], self.change_weight, self.prior_weight[at])
             self._solve(change)
         self.cusum = np.where(alarm[..., None], 0.0, self.cusum)
         self.since_zero = np.where(alarm[..., None], 0, self.since_zero)
         return change
+
+
+def _solved(
+    A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(theta, cov)`` ``((..., 3), (..., 3, 3))`` of the ridge fit ``(A + diag(w))^-1 (y + w
+    prior)``, clamped into the physical bounds (``clamp``)."""
+    cov = inv3(A + weight[..., :, None] * np.eye(3))
+    theta = np.einsum("nmij,nmj->nmi", cov, y + weight * prior)
+    return clamp(theta, cov)

@@ -125,28 +125,36 @@ def test_mekf_rides_through_an_outage_on_the_gyro():
 
 
 def fly_wheels(
-    settings: DetectorSettings, n: int, steps: int, change_at: int | None = None, seed: int = 1
+    settings: DetectorSettings,
+    n: int,
+    steps: int,
+    change_at: int | None = None,
+    seed: int = 1,
+    rows: np.ndarray | None = None,
 ) -> tuple[WheelMonitor, np.ndarray]:
     """``n`` x 4 wheels spinning far from zero speed and from their limit (Coulomb friction is
     constant over a step, so Euler is exact), random commands; with ``change_at``: wheel 0
     reversed to -0.7, wheel 1 an offset of 0.15, wheel 2 ten times the friction, wheel 3 healthy.
-    Returns the monitor and the true lumped offsets ``b - c sign(Omega)`` after the change."""
+    Returns the monitor and the true lumped offsets ``b - c sign(Omega)`` after the change. With
+    ``rows``, the monitor watches only those episodes of the same flight."""
     rng = np.random.default_rng(seed)
-    monitor = WheelMonitor(n, WHEELS, SENSORS, DT, settings)
+    rows = np.arange(n) if rows is None else rows
+    monitor = WheelMonitor(len(rows), WHEELS, SENSORS, DT, settings)
     start = rng.choice([-1.0, 1.0], (n, 4)) * rng.uniform(250.0, 400.0, (n, 4))
     speed = start.copy()
     u, js, fc0 = WHEELS.u_max_nm, WHEELS.spin_inertia_kgm2, WHEELS.coulomb_nm
-    gyro = np.zeros((n, 3))
+    gyro = np.zeros((len(rows), 3))
     gain, bias, coulomb = np.ones((n, 4)), np.zeros((n, 4)), np.full((n, 4), fc0)
     for k in range(steps):
         if change_at is not None and k == change_at:
             gain[:, 0], bias[:, 1], coulomb[:, 2] = -0.7, 0.15, 10 * fc0
-        monitor.observe(speed + SENSORS.tachometer_noise_rad_s * rng.standard_normal((n, 4)), gyro)
+        tach = speed + SENSORS.tachometer_noise_rad_s * rng.standard_normal((n, 4))
+        monitor.observe(tach[rows], gyro)
         # random, and pulled back towards the starting speed (no zero crossing, no speed limit)
         command = rng.uniform(-0.5, 0.5, (n, 4)) - np.clip((speed - start) / 200.0, -0.3, 0.3)
-        monitor.commanded(command)
+        monitor.commanded(command[rows])
         speed = speed + DT / js * (np.clip(gain * command + bias, -1, 1) * u - np.sign(speed) * coulomb)
-    return monitor, bias - coulomb / u * np.sign(speed)
+    return monitor, (bias - coulomb / u * np.sign(speed))[rows]
 
 
 def test_detector_raises_no_alarm_on_healthy_wheels():
@@ -171,6 +179,23 @@ def test_detector_detects_a_step_change_and_reidentifies_the_wheel():
     estimated = monitor.bias - monitor.theta[..., 2] * speed_sign  # the lumped offset b - c s
     assert np.abs(estimated - lumped).max() < 2e-3  # fractions of u_max
     assert not monitor.isolated.any() and not monitor.dead.any()
+
+
+def test_detector_gives_each_wheel_the_same_bits_in_any_batch():
+    """The alarm handling and the refit after a change work on the alarmed episodes only: every
+    estimate and log must come out as if the episode were flown alone, bit for bit."""
+    settings = load_fdir_params().detector()
+    whole, _ = fly_wheels(settings, n=40, steps=140, change_at=100)
+    assert (whole.detected_step[:, :3] >= 0).all()  # the change was confirmed on every episode
+    assert np.stack(whole.alarm_log).sum() > np.stack(whole.change_log).sum()  # not every alarm was one
+    for rows in (np.array([3]), np.arange(0, 40, 7), np.arange(20, 40)):
+        part, _ = fly_wheels(settings, n=40, steps=140, change_at=100, rows=rows)
+        for name in ("theta", "cov", "A", "y", "prior", "prior_weight", "cusum", "detected_step"):
+            np.testing.assert_array_equal(getattr(part, name), getattr(whole, name)[rows], err_msg=name)
+        for log in ("alarm_log", "statistic_log", "change_log"):
+            np.testing.assert_array_equal(
+                np.stack(getattr(part, log)), np.stack(getattr(whole, log))[:, rows], err_msg=log
+            )
 
 
 def test_friction_shape_is_the_plants_rk4_average_in_and_around_the_linear_zone():
