@@ -3,7 +3,10 @@
 Importing the package imports nothing of it. Where gymnasium is (or later gets) imported, the
 package's environments are registered with it (``envs.register``): gymnasium 1.x loads no plugin
 entry points, so a post-import hook does it, naming the registration by its ``"module:attr"``
-(``ENVIRONMENTS``) so that the package root depends on no layer.
+(``ENVIRONMENTS``) so that the package root depends on no layer. Two settings of the numerical
+libraries are made here too, before those libraries load: the pinned kernels of numpy and OpenBLAS
+(``PINNED_NUMERICS``) and, through a pre-import hook for numba, the vector width of its compiled
+loops (``WIDE_VECTORS``).
 """
 
 from __future__ import annotations
