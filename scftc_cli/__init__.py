@@ -41,9 +41,10 @@ kernels vectorize only across independent outputs and rows, never inside a sum (
 LLVM neither reassociates nor contracts), and each lane performs the scalar code's operations. It
 speeds the learned networks' layers (the v3 ``e2e_ppo`` policy's step 1.3-1.4x, its whole battery
 flight about 1.2x). Set, through ``NUMBA_CPU_FEATURES`` (the host's own features plus this one),
-when the package loads numba (``_BeforeNumba``): numba reads its settings once, when imported. A
-user's ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is kept; a machine without AVX-512 gets
-nothing."""
+when the package loads numba (``_BeforeNumba``): numba reads its settings once, when imported. It
+holds for every numba compilation in the process (and in processes it starts), a user's own
+kernels too: where their bits matter and they use fast-math, set ``NUMBA_CPU_FEATURES``. A user's
+``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is kept; a machine without AVX-512 gets nothing."""
 
 
 def wide_vector_features() -> str | None:
