@@ -55,11 +55,13 @@ def _start(features: str | None, core: int | None, rows: int, steps: int) -> sub
     return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, text=True, preexec_fn=pin)
 
 
-def _result(process: subprocess.Popen[str]) -> dict[str, object]:
+def _result(process: subprocess.Popen[str]) -> tuple[float, str]:
+    """``(fastest step in ms, sha256 prefix)`` a timing process printed."""
     out, _ = process.communicate()
     if process.returncode:
         raise SystemExit(f"a timing process failed (exit {process.returncode})")
-    return dict(json.loads(out.strip().splitlines()[-1]))
+    found = json.loads(out.strip().splitlines()[-1])
+    return float(found["ms"]), str(found["sha256"])
 
 
 def main() -> None:
@@ -85,20 +87,20 @@ def main() -> None:
         if together:
             a, b = (cores[0], cores[1]) if pair % 2 == 0 else (cores[1], cores[0])
             runs = [_start(narrow, a, args.rows, args.steps), _start(wide, b, args.rows, args.steps)]
-            slow, fast = (_result(p) for p in runs)
+            (slow_ms, slow_sha), (fast_ms, fast_sha) = (_result(p) for p in runs)
             where = f"256-bit on core {a}, 512-bit on core {b}, at once"
         else:
-            slow = _result(_start(narrow, None, args.rows, args.steps))
-            fast = _result(_start(wide, None, args.rows, args.steps))
+            slow_ms, slow_sha = _result(_start(narrow, None, args.rows, args.steps))
+            fast_ms, fast_sha = _result(_start(wide, None, args.rows, args.steps))
             where = "one after the other"
-        same = "the same bits" if slow["sha256"] == fast["sha256"] else "DIFFERENT BITS"
-        timings["256-bit"].append(float(slow["ms"]))
-        timings["512-bit"].append(float(fast["ms"]))
+        same = "the same bits" if slow_sha == fast_sha else "DIFFERENT BITS"
+        timings["256-bit"].append(slow_ms)
+        timings["512-bit"].append(fast_ms)
         print(
-            f"pair {pair + 1} ({where}): 256-bit {slow['ms']:.2f} ms, 512-bit {fast['ms']:.2f} ms a step "
-            f"at {args.rows} rows, x{float(slow['ms']) / float(fast['ms']):.2f}; {same} ({fast['sha256']})"
+            f"pair {pair + 1} ({where}): 256-bit {slow_ms:.2f} ms, 512-bit {fast_ms:.2f} ms a step "
+            f"at {args.rows} rows, x{slow_ms / fast_ms:.2f}; {same} ({fast_sha})"
         )
-        if slow["sha256"] != fast["sha256"]:
+        if slow_sha != fast_sha:
             raise SystemExit(1)
     narrow_ms, wide_ms = (statistics.median(t) for t in timings.values())
     print(
