@@ -36,15 +36,16 @@ for _name, _value in PINNED_NUMERICS.items():
 
 WIDE_VECTORS = "-prefer-256-bit"
 """The LLVM feature that holds numba's compiled loops to 256-bit vectors on AVX-512 CPUs (LLVM's
-default tuning for them), turned off: the loops vectorize 512 bits wide. No bit changes: the
-kernels vectorize only across independent outputs and rows, never inside a sum (no fast-math, so
-LLVM neither reassociates nor contracts), and each lane performs the scalar code's operations. It
-speeds the learned networks' layers, though less than the width suggests and not in every timing
-on a noisy machine (``benchmarks/vector_width.py``, docs/scaling.md). Set, through
-``NUMBA_CPU_FEATURES`` (the host's own features plus this one), when the package loads numba
-(``_BeforeNumba``): numba reads its settings once, when imported. It holds for every numba compilation in the process (and in processes it starts), a user's own
-kernels too: where their bits matter and they use fast-math, set ``NUMBA_CPU_FEATURES``. A user's
-``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is kept; a machine without AVX-512 gets nothing."""
+default tuning for them), turned off: the loops vectorize 512 bits wide. No bit changes: the kernels
+vectorize only across independent outputs and rows, never inside a sum (no fast-math, so LLVM
+neither reassociates nor contracts), and each lane performs the scalar code's operations. It speeds
+the learned networks' layers, though less than the width suggests and not in every timing on a noisy
+machine (``benchmarks/vector_width.py``, docs/scaling.md). Set, through ``NUMBA_CPU_FEATURES`` (the
+host's own features plus this one), when the package loads numba (``_BeforeNumba``): numba reads its
+settings once, when imported. It holds for every numba compilation in the process (and in processes
+it starts), a user's own kernels too: where their bits matter and they use fast-math, set
+``NUMBA_CPU_FEATURES``. A user's ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is kept; a machine
+without AVX-512 gets nothing."""
 
 
 def wide_vector_features() -> str | None:
