@@ -395,7 +395,6 @@ class WheelMonitor:
             return
         at = np.flatnonzero(rows.any(axis=1))
         theta, cov = _solved(self.A[at], self.y[at], self.prior_weight[at], self.prior[at])
-        self.cov, self.theta = self.cov.copy(), self.theta.copy()
         self.cov[at] = np.where(rows[at][..., None, None], cov, self.cov[at])
         self.theta[at] = np.where(rows[at][..., None], theta, self.theta[at])
 
@@ -443,10 +442,13 @@ class WheelMonitor:
         (restart it at the estimated change time); returns the confirmed changes ``(n, m)``.
 
         Computed on the episodes with an alarmed wheel only (a few of the batch at any step):
-        every quantity below is a wheel's own, so the same bits as over the whole batch."""
+        every quantity below is a wheel's own, so the same bits as over the whole batch. The
+        monitor's arrays are its own (``observe`` already adds into ``A`` and ``y`` in place, and
+        the full solve of the step made ``theta`` and ``cov`` afresh), so those rows are written in
+        place."""
         s = self.s
         at = np.flatnonzero(alarm.any(axis=1))  # episodes with an alarmed wheel
-        rung = alarm[at]
+        alarmed = alarm[at]
         cusum, theta = self.cusum[at], self.theta[at]
         side = np.argmax(cusum, axis=-1)
         since = np.take_along_axis(self.since_zero[at], side[..., None], axis=-1)[..., 0]
@@ -467,15 +469,13 @@ class WheelMonitor:
         resid = (buf_tau - fitted) / self.sigma
         count = inside.sum(axis=0)
         mse = (resid * resid * inside).sum(axis=0) / np.maximum(count, 1)
-        changed = rung & ((mse > s.consistent) | (count == 0))
+        changed = alarmed & ((mse > s.consistent) | (count == 0))
         change = np.zeros_like(alarm)
         change[at] = changed
         if changed.any():
             xw = buf_x * inside[..., None] / self.sigma
             A_new = np.einsum("bnmi,bnmj->nmij", xw, xw)
             y_new = np.einsum("bnmi,bnm->nmi", xw, buf_tau / self.sigma)
-            self.A, self.y = self.A.copy(), self.y.copy()
-            self.prior, self.prior_weight = self.prior.copy(), self.prior_weight.copy()
             self.A[at] = np.where(changed[..., None, None], A_new, self.A[at])
             self.y[at] = np.where(changed[..., None], y_new, self.y[at])
             self.prior[at] = np.where(changed[..., None], theta, self.prior[at])
