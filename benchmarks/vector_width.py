@@ -45,11 +45,10 @@ print(json.dumps({"ms": 1e3 * best, "sha256": digest.hexdigest()[:16]}))
 """
 
 
-def _start(features: str | None, core: int | None, rows: int, steps: int) -> subprocess.Popen[str]:
+def _start(features: str, core: int | None, rows: int, steps: int) -> subprocess.Popen[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_CPU")}
     env["NUMBA_NUM_THREADS"] = "1"
-    if features is not None:
-        env["NUMBA_CPU_FEATURES"] = features
+    env["NUMBA_CPU_FEATURES"] = features
     command = [sys.executable, "-c", CHILD, str(rows), str(steps)]
     pin = (lambda: os.sched_setaffinity(0, {core})) if core is not None else None
     return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, text=True, preexec_fn=pin)
@@ -72,14 +71,16 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=60, help="steps timed per process (the fastest counts)")
     parser.add_argument("--pairs", type=int, default=6, help="runs of both widths (cores swapped each time)")
     args = parser.parse_args()
-    from scftc_cli import WIDE_VECTORS, wide_vector_features
+    import llvmlite.binding as llvm
 
-    wide = wide_vector_features()
-    if wide is None:
-        print("no AVX-512 here (or NUMBA_CPU_* set): both widths compile the same code")
-        narrow = None
-    else:
-        narrow = wide.replace("," + WIDE_VECTORS, "")
+    from scftc_cli import WIDE_VECTORS
+
+    # both widths named explicitly: a child given no NUMBA_CPU_FEATURES would get the package's
+    # own choice (its pre-import hook), which is the wide one on AVX-512
+    narrow = llvm.get_host_cpu_features().flatten()
+    wide = f"{narrow},{WIDE_VECTORS}"
+    if "+avx512f" not in narrow.split(","):
+        print("no AVX-512 here: both widths compile the same code")
     cores = sorted(os.sched_getaffinity(0))
     together = len(cores) >= 2
     timings: dict[str, list[float]] = {"256-bit": [], "512-bit": []}
