@@ -24,6 +24,8 @@ from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from scftc_cli.distributed.runner import ChunkTask, Runner, StackTask
 
 
@@ -95,7 +97,9 @@ class CellRun:
     """A controller flown through one cell: the scored record and what it was made of.
 
     ``episodes`` is ``None`` after a cluster run (the workers drew them); ``drawn()`` draws them
-    again here when a per-episode log needs them.
+    again here when a per-episode log needs them. ``trace``: ``(steps + 1,)`` the error curve in
+    deg of the cell's first episode (``Rollout.traces``), where the cell was flown stacked (a
+    built-in's flight, in process or on a cluster): the study's trajectory figure reads it.
     """
 
     cell: Cell
@@ -103,6 +107,7 @@ class CellRun:
     outcomes: EpisodeOutcomes
     episodes: Episodes | None
     draw: tuple[str, int, int, bytes] = ("", 0, 0, b"")  # (benchmark, n_faults, n_seeds, salt)
+    trace: np.ndarray | None = None
 
     def drawn(self) -> Episodes:
         if self.episodes is not None:
@@ -138,7 +143,7 @@ def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout)
     result = score_cell(
         outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
     )
-    return CellRun(cell, result, outcomes, episodes)
+    return CellRun(cell, result, outcomes, episodes, trace=flown.traces.get(0))
 
 
 STACK_EPISODES = 10_000
@@ -200,7 +205,7 @@ def evaluate_stacked(
             for i, c in zip(group, members, strict=True)
         ]
         controller = make(members[0])
-        flown = rollout_parts(controller, parts, backend=backend, progress=progress)
+        flown = rollout_parts(controller, parts, backend=backend, progress=progress, trace_first=True)
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
             runs[i] = _scored(spec, cell, part, rows)
         if inspect is not None:
@@ -308,6 +313,7 @@ def _evaluate_on_cluster(
     parts = [p for t in tasks for p in t.parts]
     by_chunk = dict(zip(parts, (o for out in flown for o in out.outcomes), strict=True))
     read = dict(zip(parts, (r for out in flown for r in out.readings), strict=True)) if reader else {}
+    traced = dict(zip(parts, (t for out in flown for t in out.traces), strict=True))
     chunked = chunk_tasks(ref, spec, cells, n_faults, n_seeds, backend, salt)
     per_cell = len(chunked) // len(cells)
     runs = []
@@ -319,7 +325,7 @@ def _evaluate_on_cluster(
         result = score_cell(
             merged, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
         )
-        runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt)))
+        runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt), traced[own[0]]))
     return runs
 
 

@@ -12,6 +12,7 @@ import pytest
 from scftc_cli.errors import UsageError
 from scftc_cli.evaluate import STACK_EPISODES, Cell, board_cells, evaluate_cell, evaluate_stacked, stacks
 from scftc_cli.registry import make_controller, registry
+from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.sim.rollout import Rollout, rollout
 from scftc_cli.sim.testbed import testbed as bed_for
 from scftc_cli.spec import get_spec
@@ -42,6 +43,23 @@ def test_stacked_cells_score_bit_for_bit_as_cells_flown_alone(version: str, name
             x, y = getattr(a.outcomes, field.name), getattr(s.outcomes, field.name)
             if isinstance(x, np.ndarray):
                 np.testing.assert_array_equal(y, x, err_msg=f"{a.cell.label}: {field.name}")
+
+
+@pytest.mark.parametrize("version", version_names())
+def test_a_stack_keeps_each_cells_first_episode_as_its_recorded_flight_shows(version: str) -> None:
+    """The trajectory figure reads each cell's first episode off the battery's stacked flight
+    (``CellRun.trace``): the start's angle, then the error the plant scored after each step, as
+    flying the cell alone with everything recorded shows it."""
+    spec, bed, cells = get_spec(version), bed_for(version), _some_cells(version)
+    stacked = evaluate_stacked(
+        lambda _cell: make_controller("pd", version), spec, cells, n_faults=2, n_seeds=2
+    )
+    for cell, run in zip(cells, stacked, strict=True):
+        episodes = bed.draw(cell.split, cell.fault_class, cell.sensor, 2, 2)
+        flown = rollout(make_controller("pd", version), episodes, record=True)
+        assert flown.error_deg is not None and run.trace is not None
+        expected = np.concatenate([principal_angle_deg(flown.sigma[0, :1]), flown.error_deg[0]])
+        np.testing.assert_array_equal(run.trace, expected, err_msg=cell.label)
 
 
 def _arrays(flown: Rollout) -> dict[str, np.ndarray]:

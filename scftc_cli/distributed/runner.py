@@ -16,12 +16,15 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from scftc_cli.distributed.refs import ControllerRef
 from scftc_cli.errors import ScftcError, UsageError
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes
+
+if TYPE_CHECKING:
+    import numpy as np
 
 SCHEDULER_ENV = "SCFTC_SCHEDULER"
 CONNECT_TIMEOUT = "10s"  # how long to keep trying a scheduler that does not answer
@@ -72,10 +75,13 @@ class StackTask:
 
 
 class StackFlight(NamedTuple):
-    """A flown ``StackTask``: each chunk's outcomes, and its reading (``None`` without a reader)."""
+    """A flown ``StackTask``: each chunk's outcomes, its reading (``None`` without a reader), and
+    where the chunk starts the cell, the error curve of the cell's first episode (``CellRun.trace``;
+    ``None`` for a later chunk)."""
 
     outcomes: tuple[EpisodeOutcomes, ...]
     readings: tuple[Any, ...]
+    traces: tuple[np.ndarray | None, ...]
 
 
 def run_stack(task: StackTask) -> StackFlight:
@@ -94,7 +100,7 @@ def run_stack(task: StackTask) -> StackFlight:
     make, cleanup = first.ref.factory()
     try:
         controller = make()
-        flown = rollout_parts(controller, parts, backend=first.backend)
+        flown = rollout_parts(controller, parts, backend=first.backend, trace_first=True)
         readings = tuple(
             None
             if task.reader is None
@@ -107,7 +113,10 @@ def run_stack(task: StackTask) -> StackFlight:
         episode_outcomes(rows, bed.spec.gates, part.fault_index, bed.truth(part))
         for part, rows in zip(parts, flown, strict=True)
     )
-    return StackFlight(outcomes, readings)
+    traces = tuple(
+        rows.traces[0] if part.start == 0 else None for part, rows in zip(task.parts, flown, strict=True)
+    )
+    return StackFlight(outcomes, readings, traces)
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:
@@ -121,7 +130,7 @@ class Runner:
     ``prefetch`` queues work a caller will ``map`` later: a job that maps one controller at a time
     (``leaderboard verify``, ``reproduce``) would otherwise wait for each controller's slowest
     chunk before giving the workers the next one, and its in-process work (a submission's
-    sandboxed flights, a study's trajectories) would leave them idle. Queued all at once, the
+    sandboxed flights) would leave them idle. Queued all at once, the
     workers stay busy; ``map`` then takes the prefetched futures instead of submitting again.
     """
 

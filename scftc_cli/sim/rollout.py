@@ -7,14 +7,15 @@ trajectories unless asked to. Everything version-specific comes from the episode
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from scftc_cli.errors import ControllerError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.sim.episodes import Episodes, take_rows
-from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within
+from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within, principal_angle_deg
 from scftc_cli.sim.testbed import Plant, Testbed, testbed
 
 
@@ -55,6 +56,9 @@ class Rollout:
         error_deg: ``(n, steps)`` full error history, only when trajectories were recorded.
         states: name -> ``(n, steps + 1, d)`` true states incl. the initial one, likewise.
         commands: ``(n, steps, action_dim)`` clipped commands, likewise.
+        traces: row -> ``(steps + 1,)`` that episode's error in deg at t = 0, dt, ..., steps dt (the
+            error the plant scored after each step, after the start's angle of the attitude) for
+            the rows ``rollout`` was asked to trace: a few episodes' curves out of a large batch.
     """
 
     final_error_deg: np.ndarray
@@ -66,10 +70,14 @@ class Rollout:
     error_deg: np.ndarray | None = None
     states: dict[str, np.ndarray] = field(default_factory=dict)
     commands: np.ndarray | None = None
+    traces: dict[int, np.ndarray] = field(default_factory=dict)
 
     def subset(self, rows: slice) -> Rollout:
-        """What the episodes at ``rows`` produced (every per-episode array cut alike)."""
-        return take_rows(self, rows, len(self.final_error_deg))
+        """What the episodes at ``rows`` produced (every per-episode array cut alike; the traced
+        rows inside ``rows`` renumbered from its start)."""
+        start, stop, _ = rows.indices(len(self.final_error_deg))
+        traces = {row - start: trace for row, trace in self.traces.items() if start <= row < stop}
+        return replace(take_rows(replace(self, traces={}), rows, len(self.final_error_deg)), traces=traces)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -118,6 +126,7 @@ def rollout(
     steps: int | None = None,
     progress: Progress = NO_PROGRESS,
     plant: Plant | None = None,
+    trace_rows: Sequence[int] = (),
 ) -> Rollout:
     """Fly ``controller`` through every episode of ``episodes`` at once.
 
@@ -128,6 +137,8 @@ def rollout(
         record: keep full trajectories (states, errors, commands).
         steps: fly only this many steps (a prefix; default the whole episode).
         progress: advanced by one after each step.
+        trace_rows: episodes whose error curve to keep (``Rollout.traces``) without recording
+            the whole batch.
     """
     bed = testbed(episodes.benchmark)
     spec = bed.spec
@@ -152,6 +163,10 @@ def rollout(
         history = {name: np.empty((n, steps + 1, value.shape[1])) for name, value in plant.states().items()}
         for name, value in plant.states().items():
             history[name][:, 0] = value
+    traced = np.array(trace_rows, dtype=np.int64)
+    curves = np.empty((traced.size, steps + 1))
+    if traced.size:
+        curves[:, 0] = principal_angle_deg(plant.states()["sigma"][traced])
     sigma_norm2 = np.zeros(n)
     for k in range(steps):
         obs = sensors.observe(k, plant)
@@ -169,6 +184,8 @@ def rollout(
             errors[:, k], commands[:, k] = angle_deg_from_norm2(sigma_norm2), command
             for name, value in plant.states().items():
                 history[name][:, k + 1] = value
+        if traced.size:
+            curves[:, k + 1] = angle_deg_from_norm2(sigma_norm2[traced])
         progress.advance(1)
     # sample k (after step k) is at time (k + 1) dt; the error stays within from the next sample on
     settling = np.where(last_outside < steps - 1, (last_outside + 2 - last_start) * spec.dt_s, np.nan)
@@ -180,9 +197,10 @@ def rollout(
         angle_deg_from_norm2(window_max) if len(ends) > 1 else None,
         diagnosis.trace() if diagnosis is not None else None,
     )
+    traces = {int(row): curve for row, curve in zip(traced, curves, strict=True)}
     if not record:
-        return Rollout(*stats)
-    return Rollout(*stats, error_deg=errors, states=history, commands=commands)
+        return Rollout(*stats, traces=traces)
+    return Rollout(*stats, error_deg=errors, states=history, commands=commands, traces=traces)
 
 
 def rollout_parts(
@@ -193,15 +211,25 @@ def rollout_parts(
     record: bool = False,
     progress: Progress = NO_PROGRESS,
     step_weight: float | None = None,
+    trace_first: bool = False,
 ) -> list[Rollout]:
     """``rollout`` of several batches of one version as one batch (``Episodes.concat``), cut back
     into one ``Rollout`` per batch: equal to flying each alone for a controller whose rows are
     independent (every built-in). ``progress`` is advanced by ``step_weight`` a step, by default
-    ``len(parts)``: a step of the stack is a step of each batch."""
+    ``len(parts)``: a step of the stack is a step of each batch. ``trace_first``: keep each
+    batch's first episode's error curve (``Rollout.traces[0]``)."""
     episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
     weight = float(len(parts)) if step_weight is None else step_weight
-    flown = rollout(controller, episodes, backend=backend, record=record, progress=_Scaled(progress, weight))
-    return [flown.subset(rows) for rows in part_rows(parts)]
+    rows = part_rows(parts)
+    flown = rollout(
+        controller,
+        episodes,
+        backend=backend,
+        record=record,
+        progress=_Scaled(progress, weight),
+        trace_rows=[r.start for r in rows] if trace_first else (),
+    )
+    return [flown.subset(r) for r in rows]
 
 
 def part_rows(parts: list[Episodes]) -> list[slice]:

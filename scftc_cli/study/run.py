@@ -3,9 +3,9 @@
 ``run_study`` scores every registered controller of a benchmark version on its held-out actuator
 classes, and a deployed controller plus the ``teacher`` on its sensor faults, with exactly the calls
 ``scftc eval`` makes (``evaluate.evaluate_cells``: every number here is the number ``scftc eval``
-prints for the same cell), and flies one pinned episode per class for the trajectory figure. On a
-version with mid-flight onsets it also measures ``fdir``'s wheel detector (detection delay, false
-alarms) on the battery's own held-out actuator episodes.
+prints for the same cell), and reads the trajectory figure's pinned episode per class off the
+battery's own flights. On a version with mid-flight onsets it also measures ``fdir``'s wheel
+detector (detection delay, false alarms) on the battery's own held-out actuator episodes.
 ``study/tables.py`` turns the records into tables, ``study/figures.py`` into figures.
 """
 
@@ -32,8 +32,6 @@ from scftc_cli.evaluate import (
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.records import EpisodeOutcomes, EvalResult, collect_provenance
 from scftc_cli.registry import ControllerSpec, registry
-from scftc_cli.sim.mrp import principal_angle_deg
-from scftc_cli.sim.rollout import rollout_parts
 from scftc_cli.sim.testbed import testbed
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.study.detection import DetectorReadings, detector_flight
@@ -273,16 +271,14 @@ def sensor_controller_count(spec: BenchmarkSpec, entries: dict[str, ControllerSp
 
 def planned_steps(spec: BenchmarkSpec, entries: dict[str, ControllerSpec] | None = None) -> int:
     """Simulation steps ``run_study`` takes (progress bar total), in steps of one cell's batch: the
-    battery, the trajectories (counted as one batch per controller: one episode per class, a small
-    part of the work) and the sensor table. ``fdir``'s detection costs no steps: it is read off the
-    detector's own battery flight, in process or on the cluster's workers."""
+    battery and the sensor table. The trajectories and ``fdir``'s detection cost no steps: both are
+    read off the battery's own flights, in process or on the cluster's workers."""
     entries = registry(spec.version) if entries is None else entries
     n_classes, n_sensors = len(spec.fault_classes), len(spec.sensor_faults)
-    trajectories = len(entries)
     if sensors_in_battery(spec):
-        return (len(entries) * (n_classes + n_sensors) + trajectories) * spec.steps
+        return len(entries) * (n_classes + n_sensors) * spec.steps
     rollouts = len(entries) * n_classes + n_sensors * sensor_controller_count(spec, entries)
-    return (rollouts + trajectories) * spec.steps
+    return rollouts * spec.steps
 
 
 def choose_deployed(battery: list[EvalResult], preference: str | None) -> tuple[str | None, str]:
@@ -362,34 +358,30 @@ def preflight(entries: list[ControllerSpec]) -> None:
 
 
 def example_trajectories(
-    entries: list[ControllerSpec], spec: BenchmarkSpec, progress: Progress = NO_PROGRESS
+    entries: list[ControllerSpec], spec: BenchmarkSpec, runs: dict[str, list[CellRun]]
 ) -> list[Trajectory]:
-    """Every controller on the first pinned episode (fault 0, seed 0) of each held-out class.
-
-    The episode is fixed by the seeds, not chosen by outcome. A controller flies the classes'
-    episodes as one batch (``rollout_parts``), so the per-step cost is paid once per controller,
-    not once per class; a row agrees with its episode flown alone to about 1e-10 deg (a batch of
-    one row takes numpy's matrix-vector paths, ``evaluate_stacked``).
-    """
+    """Every controller on the first pinned episode (fault 0, seed 0) of each held-out class, read
+    off its battery flight (``runs``): the error curve that flight kept of the cell's first episode
+    (``CellRun.trace``), so the figure shows the very episode the battery scored, at no flight of
+    its own. The episode is fixed by the seeds, not chosen by outcome; its fault is drawn here
+    again (the first faults and seeds of a cell do not depend on the cell's size)."""
     bed = testbed(spec.version)
-    classes = spec.fault_classes
-    parts = [bed.draw("test", fault_class, None, n_faults=1, n_seeds=1) for fault_class in classes]
-    flights = {}
-    for entry in entries:
-        progress.describe(f"trajectories: {entry.name}")
-        try:
-            flights[entry.name] = rollout_parts(
-                entry.make(), parts, record=True, progress=progress, step_weight=1.0
-            )
-        except Exception as err:
-            raise StudyError(f"controller `{entry.name}` failed on a trajectory: {err}") from err
     out = []
-    for row, (fault_class, episode) in enumerate(zip(classes, parts, strict=True)):
+    for fault_class in spec.fault_classes:
+        episode = bed.draw("test", fault_class, None, n_faults=1, n_seeds=1)
         fault = episode.fault  # type: ignore[attr-defined]
         scale = inertia_scale(episode)  # the hub's f, wherever the version keeps it
         for entry in entries:
-            result = flights[entry.name][row]
-            assert result.error_deg is not None
+            trace = next(
+                (
+                    r.trace
+                    for r in runs[entry.name]
+                    if r.cell.sensor is None and r.cell.fault_class == fault_class
+                ),
+                None,
+            )
+            if trace is None:
+                raise StudyError(f"controller `{entry.name}`'s flight of `{fault_class}` kept no trajectory")
             out.append(
                 Trajectory(
                     controller=entry.name,
@@ -398,10 +390,10 @@ def example_trajectories(
                     gain=fault.gain[0],
                     bias=fault.bias[0],
                     inertia_scale=float(scale[0]),
-                    # the start (every version's first target is the origin), then the error the
-                    # plant scored after each step: to the current window's target where there are
-                    # several (on v1 and v2 the same bits as the angle of the attitude itself)
-                    error_deg=np.concatenate([principal_angle_deg(result.sigma[0, :1]), result.error_deg[0]]),
+                    # the start's angle of the attitude (every version's first target is the
+                    # origin), then the error the plant scored after each step: to the current
+                    # window's target where there are several
+                    error_deg=trace,
                     dt_s=spec.dt_s,
                     family=entry.family,
                 )
@@ -462,8 +454,7 @@ def run_study(
         n_faults, n_seeds: episodes per cell are ``n_faults * n_seeds`` (the spec's full cell by
             default; fewer for tests: the first faults and seeds of a cell do not depend on these).
         progress: told what runs and advanced after each simulated step.
-        runner: a Dask cluster to fly the cells on (the trajectories stay in process, flown while
-            the workers fly the battery).
+        runner: a Dask cluster to fly the cells on.
     """
     n_faults = spec.n_faults if n_faults is None else n_faults
     n_seeds = spec.n_seeds if n_seeds is None else n_seeds
@@ -490,8 +481,6 @@ def run_study(
                 n_faults=n_faults,
                 n_seeds=n_seeds,
             )
-    # flown here first: on a cluster, while the workers fly the queued battery
-    trajectories = example_trajectories(battery_order, spec, progress)
     runs = {
         e.name: _fly(e, spec, battery_cells, n_faults, n_seeds, progress, runner, inspect.get(e.name))
         for e in battery_order
@@ -528,7 +517,7 @@ def run_study(
             regimes=regimes,
             results=sensor_results,
         ),
-        trajectories=trajectories,
+        trajectories=example_trajectories(battery_order, spec, runs),
         runs=runs,
         detection=(
             fdir_detection(entries[detector], spec, runs[detector], progress, readings.stats)

@@ -325,6 +325,9 @@ def test_the_study_on_the_cluster_measures_the_detector_and_draws_the_figures_as
     for a, b in zip(serial.detection, clustered.detection, strict=True):
         for name in ("delay_steps", "faulted", "pre_onset_alarms", "healthy_alarms", "healthy_wheel_steps"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert len(clustered.trajectories) == len(V2.fault_classes)  # read off the workers' flights
+    for a, b in zip(serial.trajectories, clustered.trajectories, strict=True):
+        np.testing.assert_array_equal(a.error_deg, b.error_deg, err_msg=a.fault_class)
     here = write_figures(serial, tmp_path / "here")
     there = write_figures(clustered, tmp_path / "there", dask_runner)
     assert [p.name for p in here] == [p.name for p in there] and len(here) >= 10

@@ -114,7 +114,7 @@ def test_only_versions_with_onsets_and_fdir_measure_detection() -> None:
     assert not measures_detection(V1, registry(V1.version))
     without = {k: v for k, v in registry(V2.version).items() if k != DETECTOR}
     assert not measures_detection(V2, without)
-    battery = len(V2.fault_classes) + len(V2.sensor_faults) + 1  # its cells, its trajectories
+    battery = len(V2.fault_classes) + len(V2.sensor_faults)  # its cells (its trajectory: read off them)
     assert planned_steps(V2) - planned_steps(V2, without) == battery * V2.steps  # no detection flight
 
 
