@@ -83,9 +83,12 @@ class AttitudeFuser:
     def update(self, heads: np.ndarray, valid: np.ndarray, gyro: np.ndarray, dt_s: float) -> np.ndarray:
         heads = np.ascontiguousarray(heads, dtype=np.float64)
         gyro = np.ascontiguousarray(gyro, dtype=np.float64)
-        self.sigma = _fuse(
-            self.sigma, heads, np.ascontiguousarray(valid), gyro, self.last_gyro, self.started, dt_s
-        )
+        out = np.empty(self.sigma.shape)
+        run_rows(
+            _fuse, self.sigma, heads.reshape(len(out), 9), np.ascontiguousarray(valid), gyro, self.last_gyro,
+            self.started, dt_s, out, parallel=len(out) >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
+        self.sigma = out
         self.last_gyro, self.started = gyro.copy(), True
         return self.sigma
 
@@ -151,13 +154,11 @@ def _max(a: float, b: float) -> float:
     return a if a > b else b
 
 
-@numba.njit(cache=True)
-def _fuse(sigma, heads, valid, gyro, last_gyro, started, dt):  # pragma: no cover - compiled
-    out = np.empty(sigma.shape)
-    heads = heads.reshape(sigma.shape[0], 9)
-    for e in range(sigma.shape[0]):
+@numba.njit(cache=True, parallel=True)
+def _fuse(sigma, heads, valid, gyro, last_gyro, started, dt, out):  # pragma: no cover - compiled
+    """``_fuse_episode`` of every episode into ``out`` ``(n, 3)``; ``heads`` ``(n, 9)``."""
+    for e in numba.prange(sigma.shape[0]):
         _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, out)
-    return out
 
 
 @numba.njit(inline="always")

@@ -38,6 +38,7 @@ import numpy as np
 
 from scftc_cli.protocol import Context
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.law import friction_nm, vote
 from scftc_cli.versions.v3.controllers import fdir_fused
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
@@ -298,9 +299,10 @@ class FDIR(MissionLaw):
         )  # fmt: skip
         c = np.ascontiguousarray  # C-ordered, as the pass is compiled for
         readings = (c(gyro), c(last["gyro"]), c(tach), c(last["tach"]), c(last["command"]), c(last["field"]))
-        fdir_fused.wheel_rod_pass(
-            *readings, self.k, gyro.shape[0] == 1, axes, rod_axes, *plant, *settings, *wheel_state, *rod_state
-        )
+        run_rows(
+            fdir_fused.wheel_rod_pass, *readings, self.k, gyro.shape[0] == 1, axes, rod_axes, *plant,
+            *settings, *wheel_state, *rod_state, parallel=gyro.shape[0] >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
 
     def _wheels_and_rods_reference(self, gyro: np.ndarray, tach: np.ndarray, field: np.ndarray) -> None:
         """The wheel and rod detectors' step in numpy: the definition ``_wheels_and_rods`` compiles."""

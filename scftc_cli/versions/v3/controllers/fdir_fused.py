@@ -20,6 +20,9 @@ import numpy as np
 
 from scftc_cli.sim.sums import gemm3, gemm4
 
+CHUNK_ROWS = 64
+"""Episodes a thread takes at a time in ``wheel_rod_pass`` (each chunk has its own scratch)."""
+
 
 @numba.njit(inline="always")
 def _friction(speed, coulomb, viscous, linear):  # pragma: no cover - compiled
@@ -76,7 +79,7 @@ def _latch(count, raised, condition, persist):  # pragma: no cover - compiled
         raised[0] = True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def wheel_rod_pass(
     gyro, last_gyro, tach, last_tach, last_command, last_field, k, single_row,
     axes, rod_axes, spin_inertia, u_max, speed_cap, coulomb, viscous, linear, dipole_max, dt,
@@ -90,109 +93,117 @@ def wheel_rod_pass(
     """One step of ``FDIR._wheels_and_rods`` over every episode (module docstring); the state
     arrays (``theta (n, m, 2)`` ... ``rod_degraded_raised (n, 3)``) are updated in place."""
     n, m = gyro.shape[0], tach.shape[1]
-    x = np.zeros(3)
-    scratch, th, old_p = np.zeros(3), np.zeros(3), np.zeros((3, 3))
-    applied = np.zeros(4)
-    columns = np.zeros((3, 3))  # columns[j] = (dipole_j rod_axes[j]) x B
-    y_rod, h = np.zeros(3), np.zeros(3)
     warm = k > warmup_steps
     warm_rods = k > 4 * warmup_steps
-    for r in range(n):
-        d_omega0 = (gyro[r, 0] - last_gyro[r, 0]) / dt
-        d_omega1 = (gyro[r, 1] - last_gyro[r, 1]) / dt
-        d_omega2 = (gyro[r, 2] - last_gyro[r, 2]) / dt
-        for i in range(m):
-            d_wheel = (tach[r, i] - last_tach[r, i]) / dt
-            along = gemm3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2], single_row)
-            applied[i] = spin_inertia * (d_wheel + along)
-            friction = 0.5 * (
-                _friction(last_tach[r, i], coulomb, viscous, linear)
-                + _friction(tach[r, i], coulomb, viscous, linear)
-            )
-            a = last_command[r, i]
-            y = (applied[i] - friction) / u_max
-            usable = (abs(a) < 0.9) and (abs(tach[r, i]) < speed_cap) and (k > 2)
-            if usable:
-                x[0], x[1] = a, 1.0
-                rls_row(theta[r, i], p[r, i], x, y, forgetting, 2e4, 2, scratch, th, old_p)
-                offset_fast[r, i] = (1.0 - offset_rate) * offset_fast[r, i] + offset_rate * (
-                    y - theta[r, i, 0] * a
+    chunks = (n + CHUNK_ROWS - 1) // CHUNK_ROWS
+    for chunk in numba.prange(chunks):  # every row its own: a chunk's scratch is its own
+        x = np.zeros(3)
+        scratch, th, old_p = np.zeros(3), np.zeros(3), np.zeros((3, 3))
+        applied = np.zeros(4)
+        columns = np.zeros((3, 3))  # columns[j] = (dipole_j rod_axes[j]) x B
+        y_rod, h = np.zeros(3), np.zeros(3)
+        lo = chunk * CHUNK_ROWS
+        for r in range(lo, min(lo + CHUNK_ROWS, n)):
+            d_omega0 = (gyro[r, 0] - last_gyro[r, 0]) / dt
+            d_omega1 = (gyro[r, 1] - last_gyro[r, 1]) / dt
+            d_omega2 = (gyro[r, 2] - last_gyro[r, 2]) / dt
+            for i in range(m):
+                d_wheel = (tach[r, i] - last_tach[r, i]) / dt
+                along = gemm3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2], single_row)
+                applied[i] = spin_inertia * (d_wheel + along)
+                friction = 0.5 * (
+                    _friction(last_tach[r, i], coulomb, viscous, linear)
+                    + _friction(tach[r, i], coulomb, viscous, linear)
                 )
-            known = p[r, i, 0, 0] < gain_variance_max
-            g_hat, offset = theta[r, i, 0], theta[r, i, 1]
-            was_failed = failed_raised[r, i]
-            quiet = abs(offset_fast[r, i]) < burst_offset
-            _latch(
-                failed_count[r, i : i + 1], failed_raised[r, i : i + 1],
-                warm and known and quiet and (g_hat < dead_gain), persist_steps,
-            )  # fmt: skip
-            if failed_raised[r, i] and k == probe_until[r, i] and g_hat > half_gain:  # a probe cleared it
-                failed_raised[r, i] = False
-                failed_count[r, i] = 0
-                degraded_raised[r, i] = True
-            in_zone = warm and known and (abs(g_hat) < dead_gain) and probe_dead_zone
-            unsure = in_zone and (k % reprobe_steps == 0)
-            start = (failed_raised[r, i] and not was_failed) or (in_zone and not dead_zone[r, i]) or unsure
-            dead_zone[r, i] = in_zone
-            if start:
-                probe_until[r, i] = k + probe_steps
-            off = (known and (abs(g_hat - 1.0) > gain_tol)) or (abs(offset) > offset_tol)
-            _latch(degraded_count[r, i : i + 1], degraded_raised[r, i : i + 1], warm and off, persist_steps)
-        # rods: the hub's momentum balance while it holds still and the rods torque
-        f0, f1, f2 = last_field[r, 0], last_field[r, 1], last_field[r, 2]
-        largest = 0.0
-        for j in range(3):
-            dipole = last_command[r, m + j] * dipole_max
-            largest = max(largest, abs(dipole))
-            v0, v1, v2 = dipole * rod_axes[j, 0], dipole * rod_axes[j, 1], dipole * rod_axes[j, 2]
-            columns[j, 0] = v1 * f2 - v2 * f1
-            columns[j, 1] = v2 * f0 - v0 * f2
-            columns[j, 2] = v0 * f1 - v1 * f0
-        w0 = 0.5 * (gyro[r, 0] + last_gyro[r, 0])
-        w1 = 0.5 * (gyro[r, 1] + last_gyro[r, 1])
-        w2 = 0.5 * (gyro[r, 2] + last_gyro[r, 2])
-        torquing = largest > 0.1 * dipole_max
-        holding = (math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) < hold_rate) and torquing and (k > 2)
-        for c in range(3):
-            h[c] = gemm4(
-                spin_inertia * (0.5 * (tach[r, 0] + last_tach[r, 0])),
-                spin_inertia * (0.5 * (tach[r, 1] + last_tach[r, 1])),
-                spin_inertia * (0.5 * (tach[r, 2] + last_tach[r, 2])),
-                spin_inertia * (0.5 * (tach[r, 3] + last_tach[r, 3])),
-                axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row,
-            )  # fmt: skip
-        turn0 = w1 * h[2] - w2 * h[1]
-        turn1 = w2 * h[0] - w0 * h[2]
-        turn2 = w0 * h[1] - w1 * h[0]
-        for c in range(3):
-            a0, a1, a2, a3 = applied[0], applied[1], applied[2], applied[3]
-            base = gemm4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row)
-            y_rod[c] = base + (turn0 if c == 0 else (turn1 if c == 1 else turn2))
-        scale = dipole_max * max(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-9)
-        if holding:
+                a = last_command[r, i]
+                y = (applied[i] - friction) / u_max
+                usable = (abs(a) < 0.9) and (abs(tach[r, i]) < speed_cap) and (k > 2)
+                if usable:
+                    x[0], x[1] = a, 1.0
+                    rls_row(theta[r, i], p[r, i], x, y, forgetting, 2e4, 2, scratch, th, old_p)
+                    offset_fast[r, i] = (1.0 - offset_rate) * offset_fast[r, i] + offset_rate * (
+                        y - theta[r, i, 0] * a
+                    )
+                known = p[r, i, 0, 0] < gain_variance_max
+                g_hat, offset = theta[r, i, 0], theta[r, i, 1]
+                was_failed = failed_raised[r, i]
+                quiet = abs(offset_fast[r, i]) < burst_offset
+                _latch(
+                    failed_count[r, i : i + 1], failed_raised[r, i : i + 1],
+                    warm and known and quiet and (g_hat < dead_gain), persist_steps,
+                )  # fmt: skip
+                # a probe cleared it
+                if failed_raised[r, i] and k == probe_until[r, i] and g_hat > half_gain:
+                    failed_raised[r, i] = False
+                    failed_count[r, i] = 0
+                    degraded_raised[r, i] = True
+                in_zone = warm and known and (abs(g_hat) < dead_gain) and probe_dead_zone
+                unsure = in_zone and (k % reprobe_steps == 0)
+                start = (
+                    (failed_raised[r, i] and not was_failed) or (in_zone and not dead_zone[r, i]) or unsure
+                )
+                dead_zone[r, i] = in_zone
+                if start:
+                    probe_until[r, i] = k + probe_steps
+                off = (known and (abs(g_hat - 1.0) > gain_tol)) or (abs(offset) > offset_tol)
+                _latch(
+                    degraded_count[r, i : i + 1], degraded_raised[r, i : i + 1], warm and off, persist_steps
+                )
+            # rods: the hub's momentum balance while it holds still and the rods torque
+            f0, f1, f2 = last_field[r, 0], last_field[r, 1], last_field[r, 2]
+            largest = 0.0
+            for j in range(3):
+                dipole = last_command[r, m + j] * dipole_max
+                largest = max(largest, abs(dipole))
+                v0, v1, v2 = dipole * rod_axes[j, 0], dipole * rod_axes[j, 1], dipole * rod_axes[j, 2]
+                columns[j, 0] = v1 * f2 - v2 * f1
+                columns[j, 1] = v2 * f0 - v0 * f2
+                columns[j, 2] = v0 * f1 - v1 * f0
+            w0 = 0.5 * (gyro[r, 0] + last_gyro[r, 0])
+            w1 = 0.5 * (gyro[r, 1] + last_gyro[r, 1])
+            w2 = 0.5 * (gyro[r, 2] + last_gyro[r, 2])
+            torquing = largest > 0.1 * dipole_max
+            holding = (math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) < hold_rate) and torquing and (k > 2)
             for c in range(3):
-                for j in range(3):
-                    x[j] = columns[j, c] / scale
-                rls_row(
-                    rod_theta[r],
-                    rod_p[r],
-                    x,
-                    y_rod[c] / scale,
-                    rod_forgetting_step,
-                    30.0,
-                    3,
-                    scratch,
-                    th,
-                    old_p,
-                )
-        for j in range(3):
-            known = rod_p[r, j, j] < rod_variance_max
-            r_hat = rod_theta[r, j]
-            _latch(
-                rod_failed_count[r, j : j + 1], rod_failed_raised[r, j : j + 1],
-                warm_rods and known and (r_hat < rod_dead_gain), rod_persist_steps,
-            )  # fmt: skip
-            _latch(
-                rod_degraded_count[r, j : j + 1], rod_degraded_raised[r, j : j + 1],
-                warm_rods and known and (r_hat < half_gain), rod_persist_steps,
-            )  # fmt: skip
+                h[c] = gemm4(
+                    spin_inertia * (0.5 * (tach[r, 0] + last_tach[r, 0])),
+                    spin_inertia * (0.5 * (tach[r, 1] + last_tach[r, 1])),
+                    spin_inertia * (0.5 * (tach[r, 2] + last_tach[r, 2])),
+                    spin_inertia * (0.5 * (tach[r, 3] + last_tach[r, 3])),
+                    axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row,
+                )  # fmt: skip
+            turn0 = w1 * h[2] - w2 * h[1]
+            turn1 = w2 * h[0] - w0 * h[2]
+            turn2 = w0 * h[1] - w1 * h[0]
+            for c in range(3):
+                a0, a1, a2, a3 = applied[0], applied[1], applied[2], applied[3]
+                base = gemm4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row)
+                y_rod[c] = base + (turn0 if c == 0 else (turn1 if c == 1 else turn2))
+            scale = dipole_max * max(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-9)
+            if holding:
+                for c in range(3):
+                    for j in range(3):
+                        x[j] = columns[j, c] / scale
+                    rls_row(
+                        rod_theta[r],
+                        rod_p[r],
+                        x,
+                        y_rod[c] / scale,
+                        rod_forgetting_step,
+                        30.0,
+                        3,
+                        scratch,
+                        th,
+                        old_p,
+                    )
+            for j in range(3):
+                known = rod_p[r, j, j] < rod_variance_max
+                r_hat = rod_theta[r, j]
+                _latch(
+                    rod_failed_count[r, j : j + 1], rod_failed_raised[r, j : j + 1],
+                    warm_rods and known and (r_hat < rod_dead_gain), rod_persist_steps,
+                )  # fmt: skip
+                _latch(
+                    rod_degraded_count[r, j : j + 1], rod_degraded_raised[r, j : j + 1],
+                    warm_rods and known and (r_hat < half_gain), rod_persist_steps,
+                )  # fmt: skip

@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from scftc_cli.sim.pcg64 import next_double, numpy_stream, seeded_states, standard_normal
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.versions.v2.sim.faults import SensorFault, sensor_code
 from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
@@ -210,22 +211,24 @@ class V3Sensors(Sensors):
         out = np.empty((head.shape[0], head.shape[1] + MAG_CHANNELS))
         out[:, : head.shape[1]] = head
         field = np.ascontiguousarray(plant.states()["field_b_t"], dtype=np.float64)
-        _magnetometer_kernel(
-            k, field, self.rng, self.spike_rng, self.onset, self.biased, self.spiking, self.bias_t,
-            self.spike_probability, self.spike_amount, self.noise_t, out, head.shape[1],
+        run_rows(
+            _magnetometer_kernel, k, field, self.rng, self.spike_rng, self.onset, self.biased, self.spiking,
+            self.bias_t, self.spike_probability, self.spike_amount, self.noise_t, out, head.shape[1],
+            parallel=len(out) >= PARALLEL_MIN_BATCH,
         )  # fmt: skip
         self.next_step = k + 1
         return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _magnetometer_kernel(
     k, field, rng, spike_rng, onset, biased, spiking, bias, probability, amount, scale, out, col
 ):  # pragma: no cover - compiled
     """``magnetometer_reference`` of every episode of step ``k`` into ``out[:, col:col + 3]``,
     drawing the step's three normals of every episode and three uniforms of every spiking one
-    (``sim/pcg64.py``: the numbers numpy's generators give, in the same order)."""
-    for e in range(field.shape[0]):
+    (``sim/pcg64.py``: the numbers numpy's generators give, in the same order; each episode's
+    own streams, so the rows are independent)."""
+    for e in numba.prange(field.shape[0]):
         faulted = k >= onset[e]
         for i in range(3):  # each stream read in axis order (two streams: interleaving changes nothing)
             z = standard_normal(rng, e)
