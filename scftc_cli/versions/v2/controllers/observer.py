@@ -4,8 +4,10 @@ least squares of what the student's gain leaves unexplained (settings: ``student
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.student import ObserverConfig
 
 
@@ -36,7 +38,20 @@ class OffsetObserver:
         return p[..., 0, 0] + 2.0 * p[..., 0, 1] * psi + p[..., 1, 1] * psi * psi
 
     def update(self, residual: np.ndarray, psi: np.ndarray, valid: np.ndarray) -> None:
-        """Fold in one step's residual and friction regressor where ``valid`` ``(n, m)``."""
+        """Fold in one step's residual and friction regressor where ``valid`` ``(n, m)``: one
+        compiled pass over the episodes (``_update_rows``), the bits of ``update_reference``."""
+        theta, p = np.empty_like(self.theta), np.empty_like(self.p)
+        f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        flags = np.ascontiguousarray(valid, dtype=np.bool_)
+        run_rows(
+            _update_rows, self.theta, self.p, f64(residual), f64(psi), flags, float(self.noise),
+            float(self.config.forgetting), float(self.config.trace_max), theta, p,
+            parallel=len(theta) >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
+        self.theta, self.p = theta, p
+
+    def update_reference(self, residual: np.ndarray, psi: np.ndarray, valid: np.ndarray) -> None:
+        """``update`` in numpy: its readable definition."""
         cfg = self.config
         phi = np.stack((np.ones_like(psi), psi), axis=-1)  # (n, m, 2)
         p_phi = np.einsum("nmij,nmj->nmi", self.p, phi)
@@ -49,3 +64,38 @@ class OffsetObserver:
         p = p * np.minimum(1.0, cfg.trace_max / trace)[..., None, None]
         self.theta = np.where(valid[..., None], theta, self.theta)
         self.p = np.where(valid[..., None, None], p, self.p)
+
+
+@numba.njit(cache=True, parallel=True)
+def _update_rows(
+    theta, p, residual, psi, valid, noise, forgetting, trace_max, out_theta, out_p
+):  # pragma: no cover
+    """``OffsetObserver.update_reference`` of every wheel of every episode into ``out_theta``
+    ``(n, m, 2)`` and ``out_p`` ``(n, m, 2, 2)``. The regressor is ``(1, psi)``; numpy's einsums
+    here sum two products, which any order adds alike (and from +0.0, as numpy does)."""
+    for e in numba.prange(psi.shape[0]):
+        for i in range(psi.shape[1]):
+            x = psi[e, i]
+            t0, t1 = theta[e, i, 0], theta[e, i, 1]
+            p00, p01, p10, p11 = p[e, i, 0, 0], p[e, i, 0, 1], p[e, i, 1, 0], p[e, i, 1, 1]
+            if not valid[e, i]:
+                out_theta[e, i, 0], out_theta[e, i, 1] = t0, t1
+                out_p[e, i, 0, 0], out_p[e, i, 0, 1], out_p[e, i, 1, 0], out_p[e, i, 1, 1] = (
+                    p00,
+                    p01,
+                    p10,
+                    p11,
+                )
+                continue
+            f0 = 0.0 + (p00 * 1.0 + p01 * x)  # P phi
+            f1 = 0.0 + (p10 * 1.0 + p11 * x)
+            denom = noise + (0.0 + (1.0 * f0 + x * f1))
+            k0, k1 = f0 / denom, f1 / denom
+            error = residual[e, i] - (0.0 + (1.0 * t0 + x * t1))
+            out_theta[e, i, 0], out_theta[e, i, 1] = t0 + k0 * error, t1 + k1 * error
+            q00, q01 = (p00 - k0 * f0) / forgetting, (p01 - k0 * f1) / forgetting
+            q10, q11 = (p10 - k1 * f0) / forgetting, (p11 - k1 * f1) / forgetting
+            ratio = trace_max / (q00 + q11)
+            scale = 1.0 if ratio > 1.0 else ratio  # np.minimum(1.0, ratio): a NaN stays NaN
+            out_p[e, i, 0, 0], out_p[e, i, 0, 1] = q00 * scale, q01 * scale
+            out_p[e, i, 1, 0], out_p[e, i, 1, 1] = q10 * scale, q11 * scale
