@@ -130,8 +130,8 @@ class Runner:
     ``prefetch`` queues work a caller will ``map`` later: a job that maps one controller at a time
     (``leaderboard verify``, ``reproduce``) would otherwise wait for each controller's slowest
     chunk before giving the workers the next one, and its in-process work (a submission's
-    sandboxed flights) would leave them idle. Queued all at once, the
-    workers stay busy; ``map`` then takes the prefetched futures instead of submitting again.
+    sandboxed flights) would leave them idle. Queued all at once, the workers stay busy; ``map``
+    then takes the prefetched futures instead of submitting again.
     """
 
     def __init__(self, client: Any, address: str) -> None:
