@@ -78,14 +78,9 @@ def _update_rows(
             x = psi[e, i]
             t0, t1 = theta[e, i, 0], theta[e, i, 1]
             p00, p01, p10, p11 = p[e, i, 0, 0], p[e, i, 0, 1], p[e, i, 1, 0], p[e, i, 1, 1]
-            if not valid[e, i]:
-                out_theta[e, i, 0], out_theta[e, i, 1] = t0, t1
-                out_p[e, i, 0, 0], out_p[e, i, 0, 1], out_p[e, i, 1, 0], out_p[e, i, 1, 1] = (
-                    p00,
-                    p01,
-                    p10,
-                    p11,
-                )
+            if not valid[e, i]:  # kept as it is
+                out_theta[e, i] = theta[e, i]
+                out_p[e, i] = p[e, i]
                 continue
             f0 = 0.0 + (p00 * 1.0 + p01 * x)  # P phi
             f1 = 0.0 + (p10 * 1.0 + p11 * x)
