@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from scftc_cli.protocol import Context
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.law import wheels_of
 from scftc_cli.versions.v2.controllers.student import DetectorConfig, LatchConfig
 
@@ -68,7 +70,20 @@ class WheelLatch:
         self.latched[rows] = False
 
     def update(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
-        """Fold in the live estimate ``raw`` ``(n, m)``; returns the estimate to use."""
+        """Fold in the live estimate ``raw`` ``(n, m)``; returns the estimate to use. One compiled
+        pass over the episodes (``_latch_rows``), the bits of ``update_reference``."""
+        cfg = self.config
+        out = np.empty(self.frozen.shape)
+        run_rows(
+            _latch_rows, self.history, self.count, self.latched, self.frozen,
+            np.ascontiguousarray(raw, dtype=np.float64), np.ascontiguousarray(excitation, dtype=np.float64),
+            int(cfg.window), int(cfg.min_steps), int(cfg.max_steps), float(cfg.tolerance),
+            float(cfg.min_excitation), out, parallel=len(out) >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
+        return out
+
+    def update_reference(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
+        """``update`` in numpy: its readable definition."""
         cfg = self.config
         slot = self.count % (cfg.window + 1)
         np.put_along_axis(self.history, slot[None], raw[None], axis=0)
@@ -82,3 +97,50 @@ class WheelLatch:
         self.frozen = np.where(now, raw, self.frozen)
         self.latched |= now
         return np.where(self.latched, self.frozen, raw)
+
+
+@numba.njit(cache=True, parallel=True)
+def _latch_rows(
+    history,
+    count,
+    latched,
+    frozen,
+    raw,
+    excitation,
+    window,
+    min_steps,
+    max_steps,
+    tolerance,
+    min_excitation,
+    out,
+):  # pragma: no cover
+    """``WheelLatch.update_reference`` of every wheel of every episode, the state (``history``
+    ``(window + 1, n, m)``, ``count``, ``latched``, ``frozen`` ``(n, m)``) updated in place and the
+    estimate to use written into ``out``. The window's spread is ``max - min`` of its estimates, NaN
+    if any is NaN (as numpy's reductions give it); only its comparison is used, where the sign of
+    a zero spread does not matter."""
+    slots = window + 1
+    for e in numba.prange(raw.shape[0]):
+        for i in range(raw.shape[1]):
+            value = raw[e, i]
+            history[count[e, i] % slots, e, i] = value
+            count[e, i] += 1
+            full = count[e, i] > window
+            still = False
+            if full:
+                top, bottom, nan = history[0, e, i], history[0, e, i], False
+                for k in range(slots):
+                    v = history[k, e, i]
+                    nan |= v != v
+                    top = max(top, v)
+                    bottom = min(bottom, v)
+                spread = np.nan if nan else top - bottom
+                size = abs(value)
+                if size < 0.1:
+                    size = 0.1
+                still = spread <= tolerance * size
+            due = still or count[e, i] > max_steps
+            if not latched[e, i] and count[e, i] > min_steps and due and excitation[e, i] >= min_excitation:
+                frozen[e, i] = value
+                latched[e, i] = True
+            out[e, i] = frozen[e, i] if latched[e, i] else value

@@ -244,7 +244,29 @@ def friction_nm(
     speed_rad_s: np.ndarray, coulomb_nm: np.ndarray | float, wheels: WheelKnowledge
 ) -> np.ndarray:
     """Bearing friction ``(n, m)`` N m on each wheel at ``speed_rad_s`` (the plant's law):
-    ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC``."""
+    ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC``. One compiled
+    pass over the wheels (``_friction_rows``; the Coulomb level broadcast), the bits of
+    ``friction_nm_reference``."""
+    speed = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+    coulomb = np.asarray(coulomb_nm, dtype=np.float64)
+    levels = coulomb.reshape((1,) * (2 - coulomb.ndim) + coulomb.shape) if coulomb.ndim <= 2 else coulomb
+    fits = speed.ndim == levels.ndim == 2 and all(
+        c in (1, s) for c, s in zip(levels.shape, speed.shape, strict=True)
+    )
+    if not fits:
+        return friction_nm_reference(speed_rad_s, coulomb_nm, wheels)  # another shape: numpy's
+    out = np.empty(speed.shape)
+    run_rows(
+        _friction_rows, speed, np.ascontiguousarray(levels), float(wheels.viscous_nms),
+        float(wheels.omega_linear_rad_s), out, parallel=len(out) >= PARALLEL_MIN_BATCH,
+    )  # fmt: skip
+    return out
+
+
+def friction_nm_reference(
+    speed_rad_s: np.ndarray, coulomb_nm: np.ndarray | float, wheels: WheelKnowledge
+) -> np.ndarray:
+    """``friction_nm`` in numpy: its readable definition."""
     linear = wheels.omega_linear_rad_s
     slope = (coulomb_nm + wheels.viscous_nms * linear) / linear
     outside = -(np.sign(speed_rad_s) * coulomb_nm + wheels.viscous_nms * speed_rad_s)
@@ -383,6 +405,16 @@ def _friction(speed, coulomb, viscous, linear):  # pragma: no cover
     if abs(speed) < linear:
         return -(((coulomb + viscous * linear) / linear) * speed)
     return -(np.sign(speed) * coulomb + viscous * speed)
+
+
+@numba.njit(cache=True, parallel=True)
+def _friction_rows(speed, coulomb, viscous, linear, out):  # pragma: no cover
+    """``_friction`` of every wheel of ``speed`` ``(n, m)`` into ``out``, at the Coulomb levels
+    ``coulomb`` ``(n or 1, m or 1)`` (a length-1 axis broadcast, as numpy does): ``friction_nm``."""
+    by_row, by_wheel = coulomb.shape[0] > 1, coulomb.shape[1] > 1
+    for e in numba.prange(speed.shape[0]):
+        for i in range(speed.shape[1]):
+            out[e, i] = _friction(speed[e, i], coulomb[e * by_row, i * by_wheel], viscous, linear)
 
 
 @numba.njit(inline="always")

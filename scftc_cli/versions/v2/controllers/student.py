@@ -9,11 +9,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 
 from scftc_cli.baselines import student
 from scftc_cli.baselines.params import committed_weights
 from scftc_cli.baselines.student import StudentLayout, StudentNet
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.spec import V2
 
 # Per-wheel features, in this order (``wheel_features``).
@@ -151,7 +153,35 @@ def wheel_features(
     valid_diff: np.ndarray,
 ) -> np.ndarray:
     """``(n * m, N_FEATURES)`` features, episode-major then wheel (the order of ``FEATURES``),
-    from ``(n, m)`` arrays; the invalid pairs are zeroed (nothing unmodelled reaches the GRU)."""
+    from ``(n, m)`` arrays; the invalid pairs are zeroed (nothing unmodelled reaches the GRU).
+    One compiled pass over the episodes (``_feature_rows``), the bits of
+    ``wheel_features_reference``."""
+    f64 = lambda v: np.ascontiguousarray(v, dtype=np.float64)  # noqa: E731
+    flag = lambda v: np.ascontiguousarray(v, dtype=np.bool_)  # noqa: E731
+    n, m = np.shape(a)
+    out = np.empty((n, m, N_FEATURES))
+    run_rows(
+        _feature_rows, f64(a), f64(y), f64(da), f64(dy), f64(psi), f64(speed), f64(innovation),
+        f64(after_alarm), flag(clipped), flag(valid_raw), flag(valid_diff), out,
+        parallel=n >= PARALLEL_MIN_BATCH,
+    )  # fmt: skip
+    return out.reshape(-1, N_FEATURES)
+
+
+def wheel_features_reference(
+    a: np.ndarray,
+    y: np.ndarray,
+    da: np.ndarray,
+    dy: np.ndarray,
+    psi: np.ndarray,
+    speed: np.ndarray,
+    innovation: np.ndarray,
+    after_alarm: np.ndarray,
+    clipped: np.ndarray,
+    valid_raw: np.ndarray,
+    valid_diff: np.ndarray,
+) -> np.ndarray:
+    """``wheel_features`` in numpy: its readable definition."""
     a_r, y_r = a * valid_raw, y * valid_raw
     da_d, dy_d = da * valid_diff, dy * valid_diff
     ratio = np.clip(a_r * y_r / (a_r * a_r + RATIO_EPS), -RATIO_CLIP, RATIO_CLIP)
@@ -175,6 +205,53 @@ def wheel_features(
         valid_diff,
     )
     return np.stack([np.asarray(c, dtype=np.float64) for c in cols], axis=-1).reshape(-1, N_FEATURES)
+
+
+@numba.njit(inline="always")
+def _clip(v, bound):  # pragma: no cover
+    """``np.clip(v, -bound, bound)``: a NaN and a signed zero pass through."""
+    if v < -bound:
+        return -bound
+    if v > bound:
+        return bound
+    return v
+
+
+@numba.njit(inline="always")
+def _sign(v):  # pragma: no cover
+    """``np.sign``: +-1, +0.0 for either zero, NaN for NaN."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    if v == 0.0:
+        return 0.0
+    return v
+
+
+@numba.njit(cache=True, parallel=True)
+def _feature_rows(
+    a, y, da, dy, psi, speed, innovation, after_alarm, clipped, valid_raw, valid_diff, out
+):  # pragma: no cover
+    """``wheel_features_reference`` of every wheel of every episode into ``out`` ``(n, m, F)``: the
+    same IEEE operations in the same order, one row at a time (a flag multiplies as 1.0 or 0.0, as
+    numpy casts it)."""
+    for e in numba.prange(a.shape[0]):
+        for i in range(a.shape[1]):
+            raw, diff = 1.0 if valid_raw[e, i] else 0.0, 1.0 if valid_diff[e, i] else 0.0
+            a_r, y_r = a[e, i] * raw, y[e, i] * raw
+            da_d, dy_d = da[e, i] * diff, dy[e, i] * diff
+            row = out[e, i]
+            row[0], row[1], row[2], row[3] = a_r, y_r, da_d, dy_d
+            row[4], row[5] = a_r * y_r, a_r * a_r
+            row[6] = _clip(a_r * y_r / (a_r * a_r + RATIO_EPS), RATIO_CLIP)
+            row[7] = _clip(da_d * dy_d / (da_d * da_d + RATIO_EPS), RATIO_CLIP)
+            row[8], row[9] = psi[e, i], speed[e, i]
+            row[10] = _clip(innovation[e, i], INNOVATION_CLIP)
+            row[11] = after_alarm[e, i]
+            row[12] = 1.0 if clipped[e, i] else 0.0
+            row[13] = _sign(y[e, i] * a[e, i]) if clipped[e, i] else 0.0
+            row[14], row[15] = raw, diff
 
 
 def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
