@@ -47,6 +47,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from scftc_cli.errors import ScftcError
+from scftc_cli.sim.rows import CHUNK_ROWS
 
 CONFIG_KEY = "config"
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
@@ -205,8 +206,7 @@ def tanh_array(x):
 # inputs are folded in per pass so that the partial sums stay in registers for four products.
 
 ROWS = 4
-# Rows a thread takes at a time (a multiple of ROWS): the kernels' parallel loops run over these.
-CHUNK_ROWS = 64
+assert CHUNK_ROWS % ROWS == 0  # a thread's chunk of rows (sim/rows.py) is whole blocks
 
 
 @numba.njit(error_model="numpy")

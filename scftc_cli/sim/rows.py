@@ -34,6 +34,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numba
+import numpy as np
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
@@ -45,12 +46,27 @@ HEAVY_PARALLEL_MIN_BATCH = 256
 network, a controller's per-wheel fit): there a few hundred rows already outweigh handing them out.
 Measured on ``e2e_ppo``'s v2 battery (4 500 rows, two cores): 9.5 s on one thread, 6.2 s on two."""
 
+CHUNK_ROWS = 64
+"""Rows a thread takes at a time in the kernels that keep scratch per chunk of rows (the networks'
+layers, v3 ``fdir``'s wheel and rod pass): the scratch is allocated once per chunk, and a batch of
+a few thousand rows still splits into enough chunks to keep every thread busy."""
+
 _calling = threading.local()  # the thread count run_rows last set on each calling thread
 
 
 def thread_count() -> int:
     """Threads a large batch runs on (``NUMBA_NUM_THREADS``)."""
     return max(1, int(getattr(numba.config, "NUMBA_NUM_THREADS")))  # noqa: B009 (set at run time)
+
+
+def as_f64(a: Any) -> np.ndarray:
+    """``a`` as the C-ordered float64 array the row kernels are compiled for (no copy if it is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def as_flags(a: Any) -> np.ndarray:
+    """``a`` as a C-ordered boolean array (no copy if it is one)."""
+    return np.ascontiguousarray(a, dtype=np.bool_)
 
 
 def run_rows(kernel: Callable[..., Any], *args: Any, parallel: bool = False) -> None:

@@ -11,7 +11,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.versions.v2.controllers.law import wheels_of
 from scftc_cli.versions.v2.controllers.student import DetectorConfig, LatchConfig
 
@@ -76,7 +76,7 @@ class WheelLatch:
         out = np.empty(self.frozen.shape)
         run_rows(
             _latch_rows, self.history, self.count, self.latched, self.frozen,
-            np.ascontiguousarray(raw, dtype=np.float64), np.ascontiguousarray(excitation, dtype=np.float64),
+            as_f64(raw), as_f64(excitation),
             int(cfg.window), int(cfg.min_steps), int(cfg.max_steps), float(cfg.tolerance),
             float(cfg.min_excitation), out, parallel=len(out) >= PARALLEL_MIN_BATCH,
         )  # fmt: skip

@@ -26,7 +26,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.sums import einsum3, gemm4
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
@@ -247,7 +247,7 @@ def friction_nm(
     ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC``. One compiled
     pass over the wheels (``_friction_rows``; the Coulomb level broadcast), the bits of
     ``friction_nm_reference``."""
-    speed = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+    speed = as_f64(speed_rad_s)
     coulomb = np.asarray(coulomb_nm, dtype=np.float64)
     levels = coulomb.reshape((1,) * (2 - coulomb.ndim) + coulomb.shape) if coulomb.ndim <= 2 else coulomb
     fits = speed.ndim == levels.ndim == 2 and all(

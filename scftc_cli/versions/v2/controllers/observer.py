@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, as_flags, run_rows
 from scftc_cli.versions.v2.controllers.student import ObserverConfig
 
 
@@ -41,11 +41,9 @@ class OffsetObserver:
         """Fold in one step's residual and friction regressor where ``valid`` ``(n, m)``: one
         compiled pass over the episodes (``_update_rows``), the bits of ``update_reference``."""
         theta, p = np.empty_like(self.theta), np.empty_like(self.p)
-        f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
-        flags = np.ascontiguousarray(valid, dtype=np.bool_)
         run_rows(
-            _update_rows, self.theta, self.p, f64(residual), f64(psi), flags, float(self.noise),
-            float(self.config.forgetting), float(self.config.trace_max), theta, p,
+            _update_rows, self.theta, self.p, as_f64(residual), as_f64(psi), as_flags(valid),
+            float(self.noise), float(self.config.forgetting), float(self.config.trace_max), theta, p,
             parallel=len(theta) >= PARALLEL_MIN_BATCH,
         )  # fmt: skip
         self.theta, self.p = theta, p

@@ -15,7 +15,7 @@ import numpy as np
 from scftc_cli.baselines import student
 from scftc_cli.baselines.params import committed_weights
 from scftc_cli.baselines.student import StudentLayout, StudentNet
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, as_flags, run_rows
 from scftc_cli.versions.v2.spec import V2
 
 # Per-wheel features, in this order (``wheel_features``).
@@ -156,13 +156,12 @@ def wheel_features(
     from ``(n, m)`` arrays; the invalid pairs are zeroed (nothing unmodelled reaches the GRU).
     One compiled pass over the episodes (``_feature_rows``), the bits of
     ``wheel_features_reference``."""
-    f64 = lambda v: np.ascontiguousarray(v, dtype=np.float64)  # noqa: E731
-    flag = lambda v: np.ascontiguousarray(v, dtype=np.bool_)  # noqa: E731
     n, m = np.shape(a)
     out = np.empty((n, m, N_FEATURES))
     run_rows(
-        _feature_rows, f64(a), f64(y), f64(da), f64(dy), f64(psi), f64(speed), f64(innovation),
-        f64(after_alarm), flag(clipped), flag(valid_raw), flag(valid_diff), out,
+        _feature_rows, as_f64(a), as_f64(y), as_f64(da), as_f64(dy), as_f64(psi), as_f64(speed),
+        as_f64(innovation), as_f64(after_alarm), as_flags(clipped), as_flags(valid_raw),
+        as_flags(valid_diff), out,
         parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out.reshape(-1, N_FEATURES)

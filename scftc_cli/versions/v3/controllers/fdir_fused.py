@@ -18,10 +18,8 @@ import math
 import numba
 import numpy as np
 
+from scftc_cli.sim.rows import CHUNK_ROWS
 from scftc_cli.sim.sums import gemm3, gemm4
-
-CHUNK_ROWS = 64
-"""Episodes a thread takes at a time in ``wheel_rod_pass`` (each chunk has its own scratch)."""
 
 
 @numba.njit(inline="always")

@@ -20,7 +20,7 @@ import numpy as np
 
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
 from scftc_cli.sim.mrp_fused import relative
-from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
@@ -37,10 +37,6 @@ ALLOCATE_DEAD_BELOW = 1e-6
 def _rows(value: np.ndarray | float) -> np.ndarray:
     """A setting as ``(rows,)``: one row for every episode, or one per episode (an ``(n, 1)``)."""
     return np.ascontiguousarray(np.asarray(value, dtype=np.float64).reshape(-1))
-
-
-def _f64(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def attitude_error(sigma: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -63,8 +59,8 @@ def rate_limited_demand(
     out = np.empty(error.shape)
     n = error.shape[0]
     run_rows(
-        _demand_rows, _f64(error), _f64(gyro), _f64(tach), _f64(context.inertia_nominal_kgm2),
-        float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes), _rows(kp_s2), _rows(kd_s),
+        _demand_rows, as_f64(error), as_f64(gyro), as_f64(tach), as_f64(context.inertia_nominal_kgm2),
+        float(wheels.spin_inertia_kgm2), as_f64(wheels.spin_axes), _rows(kp_s2), _rows(kd_s),
         float(slew_rate_rad_s), out, parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out
@@ -105,10 +101,10 @@ def law_commands(
     out = np.empty((tach.shape[0], m + 3))
     n = tach.shape[0]
     run_rows(
-        _commands_rows, _f64(demand_nm), _f64(field_t), _f64(np.broadcast_to(rod_gain, (n, 3))),
-        _f64(unload).reshape(-1), _f64(gain), _f64(np.broadcast_to(offset, gain.shape)), _f64(friction_nm),
-        _f64(np.broadcast_to(disturbance_nm, (tach.shape[0], 3))), _f64(tach), _f64(along),
-        _f64(allocation_matrix), float(wheels.spin_inertia_kgm2), _f64(wheels.spin_axes),
+        _commands_rows, as_f64(demand_nm), as_f64(field_t), as_f64(np.broadcast_to(rod_gain, (n, 3))),
+        as_f64(unload).reshape(-1), as_f64(gain), as_f64(np.broadcast_to(offset, gain.shape)),
+        as_f64(friction_nm), as_f64(np.broadcast_to(disturbance_nm, (n, 3))), as_f64(tach), as_f64(along),
+        as_f64(allocation_matrix), float(wheels.spin_inertia_kgm2), as_f64(wheels.spin_axes),
         float(wheels.u_max_nm), float(rods.dipole_max_am2), UNLOAD_GAIN_PER_S,
         -null_rate_per_s * wheels.spin_inertia_kgm2, float(nu[0]), ALLOCATE_DEAD_BELOW, out,
         parallel=n >= PARALLEL_MIN_BATCH,
