@@ -27,7 +27,7 @@ from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
-from scftc_cli.sim.sums import einsum3, gemm4
+from scftc_cli.sim.sums import einsum3, fma, gemm4
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
 KD_S = 0.14
@@ -277,11 +277,63 @@ def pseudo_inverse(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
     """``M' (M M' + eps I)^-1`` ``(n, m, 3)`` of ``(n, 3, m)`` matrices of full row rank: their
     pseudo-inverse, in closed form (a 3x3 inverse per row, vectorized over the batch); ``eps``
     (relative to the trace, floored for an all-zero matrix, whose pseudo-inverse is zero) keeps it
-    finite when a row loses rank."""
+    finite when a row loses rank.
+
+    The products run compiled (``_gram_rows``, ``_pinv_rows``) and the 3x3 inverses stay LAPACK's
+    (``np.linalg.inv``): the bits of ``pseudo_inverse_reference``. numpy's ``@`` on these stacks is
+    OpenBLAS's ``dsyrk``/``dgemm``, which under the pinned kernels sums each output as the first
+    product rounded, then one fused multiply-add per further term in order (``sim/sums.py``)."""
+    matrix = as_f64(matrix)
+    if matrix.ndim != 3 or matrix.shape[1] != 3 or matrix.shape[2] < 2:
+        return pseudo_inverse_reference(matrix, damping)  # another shape: numpy's
+    n, parallel = len(matrix), len(matrix) >= PARALLEL_MIN_BATCH
+    regularized = np.empty((n, 3, 3))
+    run_rows(_gram_rows, matrix, float(damping), regularized, parallel=parallel)
+    inverse = np.linalg.inv(regularized)
+    out = np.empty((n, matrix.shape[2], 3))
+    run_rows(_pinv_rows, matrix, inverse, out, parallel=parallel)
+    return out
+
+
+def pseudo_inverse_reference(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+    """``pseudo_inverse`` in numpy: its readable definition."""
     mmt = matrix @ np.swapaxes(matrix, 1, 2)
     trace = np.trace(mmt, axis1=1, axis2=2)
     eps = damping * np.where(trace > 0.0, trace, 1.0)[:, None, None]
     return np.swapaxes(matrix, 1, 2) @ np.linalg.inv(mmt + eps * np.eye(3))
+
+
+@numba.njit(cache=True, parallel=True)
+def _gram_rows(matrix, damping, out):  # pragma: no cover - compiled
+    """``M M' + eps I`` ``(n, 3, 3)`` of ``pseudo_inverse_reference`` into ``out``: each entry of
+    ``M M'`` as OpenBLAS sums it (a multiply-add chain over the wheels, from +0.0), the trace
+    summed left to right as numpy reduces three terms, and ``eps I`` added to every entry (``+ 0.0``
+    off the diagonal, which turns a -0.0 into +0.0 as numpy's addition does)."""
+    m = matrix.shape[2]
+    for e in numba.prange(matrix.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                total = matrix[e, i, 0] * matrix[e, j, 0]
+                for k in range(1, m):
+                    total = fma(matrix[e, i, k], matrix[e, j, k], total)  # type: ignore[call-arg]
+                out[e, i, j] = 0.0 + total
+        trace = (out[e, 0, 0] + out[e, 1, 1]) + out[e, 2, 2]
+        eps = damping * (trace if trace > 0.0 else 1.0)
+        for i in range(3):
+            for j in range(3):
+                out[e, i, j] = out[e, i, j] + eps * (1.0 if i == j else 0.0)
+
+
+@numba.njit(cache=True, parallel=True)
+def _pinv_rows(matrix, inverse, out):  # pragma: no cover - compiled
+    """``M' X`` ``(n, m, 3)`` of ``matrix`` ``(n, 3, m)`` and ``inverse`` ``(n, 3, 3)`` into ``out``,
+    each entry as OpenBLAS's ``dgemm`` sums it (a multiply-add chain over the three rows, from +0.0)."""
+    for e in numba.prange(matrix.shape[0]):
+        for i in range(matrix.shape[2]):
+            for j in range(3):
+                total = matrix[e, 0, i] * inverse[e, 0, j]
+                total = fma(matrix[e, 1, i], inverse[e, 1, j], total)  # type: ignore[call-arg]
+                out[e, i, j] = 0.0 + fma(matrix[e, 2, i], inverse[e, 2, j], total)
 
 
 def allocation(gain_hat: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The per-wheel pieces compiled from their numpy definitions (the RMA student's feature builder
-and latch, the law's friction prediction): the same bits, step after step, signed zeros and NaNs
-included."""
+and latch, the law's friction prediction and allocation): the same bits, step after step, signed
+zeros and NaNs included."""
 
 from __future__ import annotations
 
@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from scftc_cli.versions.v2.controllers.latch import WheelLatch
-from scftc_cli.versions.v2.controllers.law import friction_nm, friction_nm_reference
+from scftc_cli.versions.v2.controllers.law import (
+    friction_nm,
+    friction_nm_reference,
+    pseudo_inverse,
+    pseudo_inverse_reference,
+)
 from scftc_cli.versions.v2.controllers.student import (
     N_FEATURES,
     LatchConfig,
@@ -115,3 +120,23 @@ def test_the_compiled_friction_gives_the_bits_of_its_numpy_definition(coulomb: o
         got, want = friction_nm(speed, levels, wheels), friction_nm_reference(speed, levels, wheels)
     assert got.shape == want.shape == (n, 4)
     np.testing.assert_array_equal(_bits(got), _bits(want))
+
+
+@pytest.mark.parametrize("wheels", [3, 4, 5])
+@pytest.mark.parametrize("n", [1, 9, 5_003])
+def test_the_compiled_allocation_gives_the_bits_of_its_numpy_definition(wheels: int, n: int) -> None:
+    """``pseudo_inverse`` of ``G diag(g)`` as the allocation builds it, with dead wheels (a zero
+    column of either sign), rows that lose rank and all-zero rows (the damping's floor)."""
+    rng = np.random.default_rng(10 * n + wheels)
+    axes = rng.normal(size=(wheels, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    axes[0] = (1.0, 0.0, 0.0)  # exact zeros in the products
+    gain = rng.normal(1.0, 0.5, (n, wheels)) * 10.0 ** rng.integers(-3, 3, (n, 1))
+    gain[rng.random((n, wheels)) < 0.1] = 0.0
+    gain[rng.random((n, wheels)) < 0.05] = -0.0
+    gain[: min(n, 2)] = 0.0
+    matrix = axes.T[None, :, :] * gain[:, None, :]
+    got, want = pseudo_inverse(matrix), pseudo_inverse_reference(matrix)
+    assert got.shape == want.shape == (n, wheels, 3)
+    np.testing.assert_array_equal(_bits(got), _bits(want))
+    assert np.isfinite(got).all()
