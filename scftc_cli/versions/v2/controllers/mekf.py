@@ -34,10 +34,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
+from scftc_cli.sim.sums import einsum3, fma
 from scftc_cli.versions.v2.controllers.law import nearest_branch, rotation_mrp, vote
 
 
@@ -167,6 +170,24 @@ class MEKF:
         self.P[:, 3:, 3:] = self.bias0_var * np.eye(3)
 
     def _propagate(self, gyro: np.ndarray) -> None:
+        """The attitude and covariance over a step (``_propagate_reference``): the covariance's
+        products in one compiled pass (``_propagation_rows``), the same bits."""
+        assert self.last_gyro is not None
+        dt = self.dt
+        rate = 0.5 * (self.last_gyro + gyro) - self.bias
+        phi = rate * dt
+        self.sigma = compose(self.sigma, rotation_mrp(phi))
+        qu = self.s.bias_walk**2
+        noise = (self.gyro_var * dt * dt + qu * dt**3 / 3.0, -qu * dt * dt / 2.0, qu * dt)
+        out = np.empty_like(self.P)
+        run_rows(
+            _propagation_rows, self.P, as_f64(rotation_matrix(phi)), as_f64(phi), float(dt), *noise, out,
+            parallel=len(out) >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
+        self.P = out
+
+    def _propagate_reference(self, gyro: np.ndarray) -> None:
+        """``_propagate`` in numpy: its readable definition."""
         assert self.last_gyro is not None
         dt = self.dt
         rate = 0.5 * (self.last_gyro + gyro) - self.bias
@@ -204,7 +225,23 @@ class MEKF:
 
     def _update(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
         """Kalman update with the mean innovation of ``count`` heads (rows with ``count == 0`` are
-        left alone); returns the normalized fused innovation ``(n, 3)`` (zero where not updated)."""
+        left alone); returns the normalized fused innovation ``(n, 3)`` (zero where not updated).
+        The gain, the covariance and the correction in one compiled pass (``_update_rows``), the
+        bits of ``_update_reference``."""
+        live = count > 0
+        n = len(live)
+        P, dx, z = np.empty_like(self.P), np.empty((n, 6)), np.empty((n, 3))
+        run_rows(
+            _update_rows, self.P, as_f64(nu_mean), np.ascontiguousarray(count, dtype=np.int64),
+            float(self.r_var), P, dx, z, parallel=n >= PARALLEL_MIN_BATCH,
+        )  # fmt: skip
+        self.P = P
+        self.sigma = np.where(live[:, None], compose(self.sigma, rotation_mrp(dx[:, :3])), self.sigma)
+        self.bias = self.bias + dx[:, 3:]
+        return z
+
+    def _update_reference(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
+        """``_update`` in numpy: its readable definition."""
         live = count > 0
         r = self.r_var / np.maximum(count, 1)
         S = self.P[:, :3, :3] + r[:, None, None] * np.eye(3)
@@ -300,3 +337,122 @@ class MEKF:
             self.cusum[alarm] = 0.0
             self.bias_alarm_step = np.where(alarm & (self.bias_alarm_step < 0), self.k, self.bias_alarm_step)
             self.bias_alarms += alarm
+
+
+# ---------------------------------------------------------------------------------------------
+# The covariance's algebra compiled. Each matrix product is summed as numpy's ``@`` sums it on
+# these stacks (OpenBLAS's ``dgemm``/``dsyrk`` under the pinned kernels: the first product
+# rounded, then one fused multiply-add per further term, from +0.0; ``sim/sums.py``), every
+# element-wise step is the same IEEE operation as in the numpy form, and a test compares the bits.
+
+
+@numba.njit(inline="always")
+def _chain(a, i, b, j, terms):  # pragma: no cover - compiled
+    """``sum_k a[i, k] b[k, j]`` over ``terms`` as OpenBLAS sums one entry of a product."""
+    total = a[i, 0] * b[0, j]
+    for k in range(1, terms):
+        total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
+    return 0.0 + total
+
+
+@numba.njit(cache=True, parallel=True)
+def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no cover - compiled
+    """``Phi P Phi' + Q`` of ``MEKF._propagate_reference`` for every episode into ``out``
+    ``(n, 6, 6)``: ``Phi = [[A, B], [0, I]]`` with ``A = phi_tt`` ``(n, 3, 3)`` and ``B = -dt (I -
+    [phi x] / 2)``; the noise ``q_tt I``, ``q_tb I``, ``q_bb I`` added to the blocks; symmetrized."""
+    for e in numba.prange(P.shape[0]):
+        p, a = P[e], phi_tt[e]
+        x, y, w = phi[e, 0], phi[e, 1], phi[e, 2]
+        s = np.empty((3, 3))  # [phi x], as skew() builds it (+0.0 on the diagonal)
+        s[0, 0], s[0, 1], s[0, 2] = 0.0, -w, y
+        s[1, 0], s[1, 1], s[1, 2] = w, 0.0, -x
+        s[2, 0], s[2, 1], s[2, 2] = -y, x, 0.0
+        b = np.empty((3, 3))
+        ptb_t = np.empty((3, 3))  # P_tb'
+        ptb = np.empty((3, 3))
+        pbb = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                b[i, j] = -dt * ((1.0 if i == j else 0.0) - 0.5 * s[i, j])
+                ptb[i, j] = p[i, 3 + j]
+                ptb_t[i, j] = p[j, 3 + i]
+                pbb[i, j] = p[3 + i, 3 + j]
+        a_ptt = np.empty((3, 3))
+        a_ptb = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                a_ptt[i, j] = _chain(a, i, p, j, 3) + _chain(b, i, ptb_t, j, 3)
+                a_ptb[i, j] = _chain(a, i, ptb, j, 3) + _chain(b, i, pbb, j, 3)
+        a_t, b_t = a.T, b.T
+        full = np.empty((6, 6))
+        for i in range(3):
+            for j in range(3):
+                eye = 1.0 if i == j else 0.0
+                full[i, j] = (_chain(a_ptt, i, a_t, j, 3) + _chain(a_ptb, i, b_t, j, 3)) + q_tt * eye
+                full[i, 3 + j] = a_ptb[i, j] + q_tb * eye
+                full[3 + i, 3 + j] = pbb[i, j] + q_bb * eye
+        for i in range(3):
+            for j in range(3):
+                full[3 + i, j] = full[j, 3 + i]
+        for i in range(6):
+            for j in range(6):
+                out[e, i, j] = 0.5 * (full[i, j] + full[j, i])
+
+
+@numba.njit(cache=True, parallel=True)
+def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no cover - compiled
+    """``MEKF._update_reference`` for every episode: the new covariance into ``out_p`` (Joseph
+    form, symmetrized; unchanged where ``count == 0``), the correction ``dx`` ``(n, 6)`` into
+    ``out_dx`` (zero there) and the normalized fused innovation into ``out_z`` ``(n, 3)``. ``S^-1`` by
+    the adjugate as ``inv3``; ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
+    for row in numba.prange(P.shape[0]):
+        p = P[row]
+        live = count[row] > 0
+        r = r_var / max(count[row], 1)
+        S = np.empty((3, 3))
+        for u in range(3):
+            for v in range(3):
+                S[u, v] = p[u, v] + r * (1.0 if u == v else 0.0)
+        a, b, c = S[0, 0], S[0, 1], S[0, 2]  # inv3's names
+        d, e, f = S[1, 0], S[1, 1], S[1, 2]
+        g, h, i = S[2, 0], S[2, 1], S[2, 2]
+        co = np.empty((3, 3))
+        co[0, 0], co[0, 1], co[0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
+        co[1, 0], co[1, 1], co[1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
+        co[2, 0], co[2, 1], co[2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
+        det = (a * co[0, 0] + b * co[1, 0]) + c * co[2, 0]
+        s_inv = np.empty((3, 3))
+        for u in range(3):
+            for v in range(3):
+                s_inv[u, v] = co[u, v] / det
+        K = np.empty((6, 3))
+        for u in range(6):
+            for v in range(3):
+                K[u, v] = _chain(p, u, s_inv, v, 3)
+        nu0, nu1, nu2 = nu_mean[row, 0], nu_mean[row, 1], nu_mean[row, 2]
+        for u in range(6):
+            out_dx[row, u] = einsum3(K[u, 0], K[u, 1], K[u, 2], nu0, nu1, nu2) if live else 0.0
+        if live:
+            ikh = np.empty((6, 6))  # I - K H, H = [I 0]
+            for u in range(6):
+                for v in range(6):
+                    eye = 1.0 if u == v else 0.0
+                    ikh[u, v] = eye - K[u, v] if v < 3 else eye
+            left = np.empty((6, 6))
+            for u in range(6):
+                for v in range(6):
+                    left[u, v] = _chain(ikh, u, p, v, 6)
+            ikh_t, k_t = ikh.T, K.T
+            full = np.empty((6, 6))
+            for u in range(6):
+                for v in range(6):
+                    full[u, v] = _chain(left, u, ikh_t, v, 6) + r * _chain(K, u, k_t, v, 3)
+            for u in range(6):
+                for v in range(6):
+                    out_p[row, u, v] = 0.5 * (full[u, v] + full[v, u])
+        else:
+            for u in range(6):
+                for v in range(6):
+                    out_p[row, u, v] = p[u, v]
+        for u in range(3):
+            out_z[row, u] = nu_mean[row, u] / np.sqrt(S[u, u]) if live else 0.0

@@ -1,0 +1,60 @@
+"""The MEKF's covariance algebra compiled (``_propagation_rows``, ``_update_rows``) gives the bits
+of its numpy form, step after step: flown in lockstep with a filter on the numpy methods through
+noisy heads, a head fault, a gyro-bias step, an outage and episodes with no valid head."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scftc_cli.sim.mrp import compose
+from scftc_cli.versions.v2.controllers.fdir import load_fdir_params
+from scftc_cli.versions.v2.controllers.mekf import MEKF
+from scftc_cli.versions.v2.sim.testbed import public_context
+
+CONTEXT = public_context(1)
+SENSORS, DT = CONTEXT.sensors, CONTEXT.dt_s
+assert SENSORS is not None
+
+
+class NumpyMEKF(MEKF):
+    """The filter on its numpy definitions."""
+
+    _propagate = MEKF._propagate_reference
+    _update = MEKF._update_reference
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a, dtype=np.float64).view(np.int64)
+
+
+@pytest.mark.parametrize("n", [1, 13, 5_003])  # one episode, a few, past the parallel threshold
+def test_the_compiled_filter_gives_the_bits_of_its_numpy_definition(n: int) -> None:
+    rng = np.random.default_rng(n)
+    settings = load_fdir_params().mekf()
+    compiled, reference = MEKF(n, SENSORS, DT, settings), NumpyMEKF(n, SENSORS, DT, settings)
+    sigma = rng.uniform(-0.3, 0.3, (n, 3))
+    rate = rng.uniform(-0.02, 0.02, (n, 3))
+    bias = rng.uniform(-1.0, 1.0, (n, 3)) * SENSORS.gyro_bias_bound_rad_s
+    noise = SENSORS.star_tracker_noise_rad
+    updated_and_not = False
+    for k in range(120):
+        sigma = compose(sigma, 0.25 * rate * DT)
+        heads = np.stack([compose(sigma, noise * rng.standard_normal((n, 3))) for _ in range(3)], axis=1)
+        valid = rng.random((n, 3)) > 0.05
+        if k >= 40:  # a biased head on half the episodes
+            half = n // 2 + 1
+            heads[:half, 1] = compose(heads[:half, 1], np.full((half, 3), 1e-3))
+        if 60 <= k < 75:
+            valid[::3] = False  # an outage on every third episode
+        gyro = rate + bias + (5e-4 if k >= 80 else 0.0) + 1e-5 * rng.standard_normal((n, 3))
+        got = compiled.step(heads, valid, gyro)
+        want = reference.step(heads, valid, gyro)
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(_bits(a), _bits(b))
+        np.testing.assert_array_equal(_bits(compiled.P), _bits(reference.P))
+        np.testing.assert_array_equal(_bits(compiled.bias), _bits(reference.bias))
+        np.testing.assert_array_equal(compiled.used, reference.used)
+        updated_and_not |= bool(compiled.used.any(axis=1).any() and not compiled.used.any(axis=1).all())
+    assert updated_and_not or n == 1  # rows with and without an update side by side
+    assert np.abs(compiled.bias).max() > 0.0  # it estimated something
