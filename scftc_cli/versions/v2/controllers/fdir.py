@@ -32,6 +32,7 @@ from scftc_cli.versions.v2.controllers.detection import DetectorSettings, WheelM
 from scftc_cli.versions.v2.controllers.law import (
     allocate,
     friction_nm,
+    pseudo_inverse,
     split_observation,
     torque_demand,
     wheels_of,
@@ -85,10 +86,9 @@ def _strip(params: FDIRParams, prefix: str, target: type) -> dict[str, Any]:
 
 def pseudo_inverse3(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
     """``law.pseudo_inverse`` (``M' (M M' + eps I)^-1``, ``(n, 3, m) -> (n, m, 3)``) with the
-    3x3 inverse in closed form: the same allocation ``pinv(G diag(g_hat))``, faster per step."""
-    mmt = matrix @ np.swapaxes(matrix, 1, 2)
-    eps = damping * np.trace(mmt, axis1=1, axis2=2)[:, None, None]
-    return np.swapaxes(matrix, 1, 2) @ inv3(mmt + eps * np.eye(3))
+    3x3 inverse in closed form (``inv3``) and ``eps`` the plain ``damping`` times the trace: the
+    same allocation ``pinv(G diag(g_hat))``, faster per step."""
+    return pseudo_inverse(matrix, damping, invert=inv3, floor_zero_trace=False)
 
 
 def load_fdir_params(path: Path | None = None) -> FDIRParams:

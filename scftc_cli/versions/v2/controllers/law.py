@@ -20,6 +20,8 @@ All arrays are batch-first; units SI.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba
 import numpy as np
 
@@ -273,38 +275,49 @@ def friction_nm_reference(
     return np.where(np.abs(speed_rad_s) < linear, -(slope * speed_rad_s), outside)
 
 
-def pseudo_inverse(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+def pseudo_inverse(
+    matrix: np.ndarray,
+    damping: float = 1e-12,
+    invert: Callable[[np.ndarray], np.ndarray] = np.linalg.inv,
+    floor_zero_trace: bool = True,
+) -> np.ndarray:
     """``M' (M M' + eps I)^-1`` ``(n, m, 3)`` of ``(n, 3, m)`` matrices of full row rank: their
     pseudo-inverse, in closed form (a 3x3 inverse per row, vectorized over the batch); ``eps``
     (relative to the trace, floored for an all-zero matrix, whose pseudo-inverse is zero) keeps it
-    finite when a row loses rank.
+    finite when a row loses rank. ``invert`` inverts the ``(n, 3, 3)`` stack (LAPACK's by default);
+    without ``floor_zero_trace`` an all-zero matrix gets no damping (``fdir``'s form).
 
-    The products run compiled (``_gram_rows``, ``_pinv_rows``) and the 3x3 inverses stay LAPACK's
-    (``np.linalg.inv``): the bits of ``pseudo_inverse_reference``. numpy's ``@`` on these stacks is
-    OpenBLAS's ``dsyrk``/``dgemm``, which under the pinned kernels sums each output as the first
-    product rounded, then one fused multiply-add per further term in order (``sim/sums.py``)."""
+    The products run compiled (``_gram_rows``, ``_pinv_rows``) around ``invert``: the bits of
+    ``pseudo_inverse_reference``. numpy's ``@`` on these stacks is OpenBLAS's ``dsyrk``/``dgemm``,
+    which under the pinned kernels sums each output as the first product rounded, then one fused
+    multiply-add per further term in order (``sim/sums.py``)."""
     matrix = as_f64(matrix)
-    if matrix.ndim != 3 or matrix.shape[1] != 3 or matrix.shape[2] < 2:
-        return pseudo_inverse_reference(matrix, damping)  # another shape: numpy's
+    if matrix.ndim != 3 or matrix.shape[1] != 3 or matrix.shape[2] < 2:  # another shape: numpy's
+        return pseudo_inverse_reference(matrix, damping, invert, floor_zero_trace)
     n, parallel = len(matrix), len(matrix) >= PARALLEL_MIN_BATCH
     regularized = np.empty((n, 3, 3))
-    run_rows(_gram_rows, matrix, float(damping), regularized, parallel=parallel)
-    inverse = np.linalg.inv(regularized)
+    run_rows(_gram_rows, matrix, float(damping), bool(floor_zero_trace), regularized, parallel=parallel)
+    inverse = as_f64(invert(regularized))
     out = np.empty((n, matrix.shape[2], 3))
     run_rows(_pinv_rows, matrix, inverse, out, parallel=parallel)
     return out
 
 
-def pseudo_inverse_reference(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+def pseudo_inverse_reference(
+    matrix: np.ndarray,
+    damping: float = 1e-12,
+    invert: Callable[[np.ndarray], np.ndarray] = np.linalg.inv,
+    floor_zero_trace: bool = True,
+) -> np.ndarray:
     """``pseudo_inverse`` in numpy: its readable definition."""
     mmt = matrix @ np.swapaxes(matrix, 1, 2)
     trace = np.trace(mmt, axis1=1, axis2=2)
-    eps = damping * np.where(trace > 0.0, trace, 1.0)[:, None, None]
-    return np.swapaxes(matrix, 1, 2) @ np.linalg.inv(mmt + eps * np.eye(3))
+    eps = damping * (np.where(trace > 0.0, trace, 1.0) if floor_zero_trace else trace)[:, None, None]
+    return np.swapaxes(matrix, 1, 2) @ invert(mmt + eps * np.eye(3))
 
 
 @numba.njit(cache=True, parallel=True)
-def _gram_rows(matrix, damping, out):  # pragma: no cover - compiled
+def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - compiled
     """``M M' + eps I`` ``(n, 3, 3)`` of ``pseudo_inverse_reference`` into ``out``: each entry of
     ``M M'`` as OpenBLAS sums it (a multiply-add chain over the wheels, from +0.0), the trace
     summed left to right as numpy reduces three terms, and ``eps I`` added to every entry (``+ 0.0``
@@ -318,7 +331,7 @@ def _gram_rows(matrix, damping, out):  # pragma: no cover - compiled
                     total = fma(matrix[e, i, k], matrix[e, j, k], total)  # type: ignore[call-arg]
                 out[e, i, j] = 0.0 + total
         trace = (out[e, 0, 0] + out[e, 1, 1]) + out[e, 2, 2]
-        eps = damping * (trace if trace > 0.0 else 1.0)
+        eps = damping * (trace if trace > 0.0 or not floor_zero_trace else 1.0)
         for i in range(3):
             for j in range(3):
                 out[e, i, j] = out[e, i, j] + eps * (1.0 if i == j else 0.0)

@@ -72,7 +72,16 @@ class MEKFSettings:
 
 def inv3(m: np.ndarray) -> np.ndarray:
     """Inverse of a stack of 3x3 matrices ``(..., 3, 3)`` by the adjugate (faster than LAPACK
-    for small matrices; the callers' matrices are covariances, well conditioned)."""
+    for small matrices; the callers' matrices are covariances, well conditioned). One compiled pass
+    (``_inv3_rows``), the bits of ``inv3_reference``."""
+    flat = as_f64(m).reshape(-1, 3, 3)
+    out = np.empty_like(flat)
+    run_rows(_inv3_rows, flat, out, parallel=len(flat) >= PARALLEL_MIN_BATCH)
+    return out.reshape(np.shape(m))
+
+
+def inv3_reference(m: np.ndarray) -> np.ndarray:
+    """``inv3`` in numpy: its readable definition."""
     a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
@@ -344,6 +353,8 @@ class MEKF:
 # these stacks (OpenBLAS's ``dgemm``/``dsyrk`` under the pinned kernels: the first product
 # rounded, then one fused multiply-add per further term, from +0.0; ``sim/sums.py``), every
 # element-wise step is the same IEEE operation as in the numpy form, and a test compares the bits.
+# ``error_model="numpy"`` where a kernel divides: a zero divisor gives IEEE's inf or NaN, as in
+# numpy, instead of an exception.
 
 
 @numba.njit(inline="always")
@@ -353,6 +364,29 @@ def _chain(a, i, b, j, terms):  # pragma: no cover - compiled
     for k in range(1, terms):
         total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
     return 0.0 + total
+
+
+@numba.njit(inline="always")
+def _inverse3(m, out):  # pragma: no cover - compiled
+    """``inv3_reference`` of one 3x3 matrix ``m`` into ``out``: the adjugate over the determinant,
+    its terms in the same order."""
+    a, b, c = m[0, 0], m[0, 1], m[0, 2]
+    d, e, f = m[1, 0], m[1, 1], m[1, 2]
+    g, h, i = m[2, 0], m[2, 1], m[2, 2]
+    c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
+    c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
+    c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
+    det = (a * c00 + b * c10) + c * c20
+    out[0, 0], out[0, 1], out[0, 2] = c00 / det, c01 / det, c02 / det
+    out[1, 0], out[1, 1], out[1, 2] = c10 / det, c11 / det, c12 / det
+    out[2, 0], out[2, 1], out[2, 2] = c20 / det, c21 / det, c22 / det
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _inv3_rows(m, out):  # pragma: no cover - compiled
+    """``_inverse3`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
+    for row in numba.prange(m.shape[0]):
+        _inverse3(m[row], out[row])
 
 
 @numba.njit(cache=True, parallel=True)
@@ -399,12 +433,12 @@ def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no 
                 out[e, i, j] = 0.5 * (full[i, j] + full[j, i])
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no cover - compiled
     """``MEKF._update_reference`` for every episode: the new covariance into ``out_p`` (Joseph
     form, symmetrized; unchanged where ``count == 0``), the correction ``dx`` ``(n, 6)`` into
     ``out_dx`` (zero there) and the normalized fused innovation into ``out_z`` ``(n, 3)``. ``S^-1`` by
-    the adjugate as ``inv3``; ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
+    the adjugate (``_inverse3``); ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
     for row in numba.prange(P.shape[0]):
         p = P[row]
         live = count[row] > 0
@@ -413,18 +447,8 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
         for u in range(3):
             for v in range(3):
                 S[u, v] = p[u, v] + r * (1.0 if u == v else 0.0)
-        a, b, c = S[0, 0], S[0, 1], S[0, 2]  # inv3's names
-        d, e, f = S[1, 0], S[1, 1], S[1, 2]
-        g, h, i = S[2, 0], S[2, 1], S[2, 2]
-        co = np.empty((3, 3))
-        co[0, 0], co[0, 1], co[0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
-        co[1, 0], co[1, 1], co[1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
-        co[2, 0], co[2, 1], co[2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
-        det = (a * co[0, 0] + b * co[1, 0]) + c * co[2, 0]
         s_inv = np.empty((3, 3))
-        for u in range(3):
-            for v in range(3):
-                s_inv[u, v] = co[u, v] / det
+        _inverse3(S, s_inv)
         K = np.empty((6, 3))
         for u in range(6):
             for v in range(3):

@@ -228,7 +228,7 @@ def _sign(v):  # pragma: no cover
     return v
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _feature_rows(
     a, y, da, dy, psi, speed, innovation, after_alarm, clipped, valid_raw, valid_diff, out
 ):  # pragma: no cover

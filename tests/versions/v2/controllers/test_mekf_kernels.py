@@ -1,6 +1,7 @@
-"""The MEKF's covariance algebra compiled (``_propagation_rows``, ``_update_rows``) gives the bits
-of its numpy form, step after step: flown in lockstep with a filter on the numpy methods through
-noisy heads, a head fault, a gyro-bias step, an outage and episodes with no valid head."""
+"""``fdir``'s compiled algebra (v2) gives the bits of its numpy form: the MEKF's covariance
+(``_propagation_rows``, ``_update_rows``) step after step, flown in lockstep with a filter on the
+numpy methods through noisy heads, a head fault, a gyro-bias step, an outage and episodes with no
+valid head; the adjugate inverse ``inv3``; the allocation ``pseudo_inverse3``."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim.mrp import compose
-from scftc_cli.versions.v2.controllers.fdir import load_fdir_params
-from scftc_cli.versions.v2.controllers.mekf import MEKF
+from scftc_cli.versions.v2.controllers.fdir import load_fdir_params, pseudo_inverse3
+from scftc_cli.versions.v2.controllers.law import pseudo_inverse_reference
+from scftc_cli.versions.v2.controllers.mekf import MEKF, inv3, inv3_reference
 from scftc_cli.versions.v2.sim.testbed import public_context
 
 CONTEXT = public_context(1)
@@ -58,3 +60,37 @@ def test_the_compiled_filter_gives_the_bits_of_its_numpy_definition(n: int) -> N
         updated_and_not |= bool(compiled.used.any(axis=1).any() and not compiled.used.any(axis=1).all())
     assert updated_and_not or n == 1  # rows with and without an update side by side
     assert np.abs(compiled.bias).max() > 0.0  # it estimated something
+
+
+@pytest.mark.parametrize("shape", [(1,), (7,), (5_003,), (6, 4)])
+def test_the_compiled_adjugate_inverse_gives_the_bits_of_its_numpy_definition(shape: tuple[int, ...]) -> None:
+    """``inv3`` on stacks of any leading shape, a singular matrix (IEEE inf and NaN, no exception)
+    and signed zeros included."""
+    rng = np.random.default_rng(sum(shape))
+    root = rng.normal(size=(*shape, 3, 3))
+    m = root @ np.swapaxes(root, -1, -2) + 1e-3 * rng.normal(size=(*shape, 3, 3))
+    flat = m.reshape(-1, 3, 3)
+    flat[0] = 0.0  # singular: det 0
+    if len(flat) > 2:
+        flat[1, 0, 1] = -0.0
+        flat[2] = np.diag([1.0, 2.0, 4.0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        got, want = inv3(m), inv3_reference(m)
+    assert got.shape == want.shape == m.shape
+    np.testing.assert_array_equal(_bits(got), _bits(want))
+
+
+@pytest.mark.parametrize("n", [1, 9, 5_003])
+def test_fdirs_allocation_gives_the_bits_of_its_numpy_definition(n: int) -> None:
+    """``pseudo_inverse3`` (the products compiled around ``inv3``, no damping floor) against its
+    numpy form, with dead wheels of either sign."""
+    rng = np.random.default_rng(n)
+    axes = public_context(1).wheels.spin_axes  # type: ignore[union-attr]
+    gain = rng.normal(1.0, 0.4, (n, 4))
+    gain[rng.random((n, 4)) < 0.15] = 0.0
+    gain[rng.random((n, 4)) < 0.05] = -0.0
+    matrix = axes.T[None, :, :] * gain[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):  # a row with every wheel dead: NaN, both
+        got = pseudo_inverse3(matrix)
+        want = pseudo_inverse_reference(matrix, 1e-12, inv3_reference, floor_zero_trace=False)
+    np.testing.assert_array_equal(_bits(got), _bits(want))
