@@ -35,6 +35,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context, Controller, WheelKnowledge
+from scftc_cli.sim.scalars import inverse3
 from scftc_cli.versions.v2.controllers.law import (
     AttitudeFuser,
     allocate,
@@ -325,16 +326,7 @@ def _gram_inverse(effective, mmt, inverse):  # pragma: no cover - compiled
     eps = 1e-12 * (trace if trace > 0.0 else 1.0)
     for r in range(3):
         mmt[r, r] += eps
-    a00, a01, a02 = mmt[0, 0], mmt[0, 1], mmt[0, 2]
-    a10, a11, a12 = mmt[1, 0], mmt[1, 1], mmt[1, 2]
-    a20, a21, a22 = mmt[2, 0], mmt[2, 1], mmt[2, 2]
-    c00, c01, c02 = a11 * a22 - a12 * a21, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11
-    c10, c11, c12 = a12 * a20 - a10 * a22, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12
-    c20, c21, c22 = a10 * a21 - a11 * a20, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10
-    det = a00 * c00 + a01 * c10 + a02 * c20
-    inverse[0, 0], inverse[0, 1], inverse[0, 2] = c00 / det, c01 / det, c02 / det
-    inverse[1, 0], inverse[1, 1], inverse[1, 2] = c10 / det, c11 / det, c12 / det
-    inverse[2, 0], inverse[2, 1], inverse[2, 2] = c20 / det, c21 / det, c22 / det
+    inverse3(mmt, inverse)
 
 
 @numba.njit(cache=True)

@@ -40,6 +40,7 @@ import numpy as np
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
+from scftc_cli.sim.scalars import inverse3
 from scftc_cli.sim.sums import einsum3, fma
 from scftc_cli.versions.v2.controllers.law import nearest_branch, rotation_mrp, vote
 
@@ -366,27 +367,11 @@ def _chain(a, i, b, j, terms):  # pragma: no cover - compiled
     return 0.0 + total
 
 
-@numba.njit(inline="always")
-def _inverse3(m, out):  # pragma: no cover - compiled
-    """``inv3_reference`` of one 3x3 matrix ``m`` into ``out``: the adjugate over the determinant,
-    its terms in the same order."""
-    a, b, c = m[0, 0], m[0, 1], m[0, 2]
-    d, e, f = m[1, 0], m[1, 1], m[1, 2]
-    g, h, i = m[2, 0], m[2, 1], m[2, 2]
-    c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
-    c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
-    c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
-    det = (a * c00 + b * c10) + c * c20
-    out[0, 0], out[0, 1], out[0, 2] = c00 / det, c01 / det, c02 / det
-    out[1, 0], out[1, 1], out[1, 2] = c10 / det, c11 / det, c12 / det
-    out[2, 0], out[2, 1], out[2, 2] = c20 / det, c21 / det, c22 / det
-
-
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _inv3_rows(m, out):  # pragma: no cover - compiled
-    """``_inverse3`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
+    """``inv3_reference`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
     for row in numba.prange(m.shape[0]):
-        _inverse3(m[row], out[row])
+        inverse3(m[row], out[row])
 
 
 @numba.njit(cache=True, parallel=True)
@@ -438,7 +423,7 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
     """``MEKF._update_reference`` for every episode: the new covariance into ``out_p`` (Joseph
     form, symmetrized; unchanged where ``count == 0``), the correction ``dx`` ``(n, 6)`` into
     ``out_dx`` (zero there) and the normalized fused innovation into ``out_z`` ``(n, 3)``. ``S^-1`` by
-    the adjugate (``_inverse3``); ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
+    the adjugate (``sim/scalars.inverse3``); ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
     for row in numba.prange(P.shape[0]):
         p = P[row]
         live = count[row] > 0
@@ -448,7 +433,7 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
             for v in range(3):
                 S[u, v] = p[u, v] + r * (1.0 if u == v else 0.0)
         s_inv = np.empty((3, 3))
-        _inverse3(S, s_inv)
+        inverse3(S, s_inv)
         K = np.empty((6, 3))
         for u in range(6):
             for v in range(3):

@@ -16,6 +16,7 @@ from scftc_cli.baselines import student
 from scftc_cli.baselines.params import committed_weights
 from scftc_cli.baselines.student import StudentLayout, StudentNet
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, as_flags, run_rows
+from scftc_cli.sim.scalars import clip
 from scftc_cli.versions.v2.spec import V2
 
 # Per-wheel features, in this order (``wheel_features``).
@@ -207,16 +208,6 @@ def wheel_features_reference(
 
 
 @numba.njit(inline="always")
-def _clip(v, bound):  # pragma: no cover
-    """``np.clip(v, -bound, bound)``: a NaN and a signed zero pass through."""
-    if v < -bound:
-        return -bound
-    if v > bound:
-        return bound
-    return v
-
-
-@numba.njit(inline="always")
 def _sign(v):  # pragma: no cover
     """``np.sign``: +-1, +0.0 for either zero, NaN for NaN."""
     if v > 0.0:
@@ -243,10 +234,10 @@ def _feature_rows(
             row = out[e, i]
             row[0], row[1], row[2], row[3] = a_r, y_r, da_d, dy_d
             row[4], row[5] = a_r * y_r, a_r * a_r
-            row[6] = _clip(a_r * y_r / (a_r * a_r + RATIO_EPS), RATIO_CLIP)
-            row[7] = _clip(da_d * dy_d / (da_d * da_d + RATIO_EPS), RATIO_CLIP)
+            row[6] = clip(a_r * y_r / (a_r * a_r + RATIO_EPS), RATIO_CLIP)
+            row[7] = clip(da_d * dy_d / (da_d * da_d + RATIO_EPS), RATIO_CLIP)
             row[8], row[9] = psi[e, i], speed[e, i]
-            row[10] = _clip(innovation[e, i], INNOVATION_CLIP)
+            row[10] = clip(innovation[e, i], INNOVATION_CLIP)
             row[11] = after_alarm[e, i]
             row[12] = 1.0 if clipped[e, i] else 0.0
             row[13] = _sign(y[e, i] * a[e, i]) if clipped[e, i] else 0.0

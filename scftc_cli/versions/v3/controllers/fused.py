@@ -21,6 +21,7 @@ import numpy as np
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
 from scftc_cli.sim.mrp_fused import relative
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
+from scftc_cli.sim.scalars import clip
 from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
@@ -139,21 +140,11 @@ def _demand_episode(
 
 
 @numba.njit(inline="always")
-def _clip(x, bound):  # pragma: no cover - compiled
-    """``np.clip(x, -bound, bound)``."""
-    if x < -bound:
-        return -bound
-    if x > bound:
-        return bound
-    return x
-
-
-@numba.njit(inline="always")
 def _rod(want, g, m_max):  # pragma: no cover - compiled
     """``law.rod_commands`` of one rod: its command for the dipole ``want`` through its gain."""
     working = abs(g) >= 0.1
     command = want / (m_max * (g if working else 1.0))
-    return _clip(command if working else 0.0, 1.0)
+    return clip(command if working else 0.0, 1.0)
 
 
 @numba.njit(inline="always")
@@ -162,8 +153,8 @@ def _wheel(matrix_row, g, offset, friction, r0, r1, r2, u_max, dead_below, drain
     working = abs(g) > dead_below
     command = einsum3(matrix_row[0], matrix_row[1], matrix_row[2], r0, r1, r2)
     cancel = (offset + friction / u_max) / (g if working else 1.0)
-    command = _clip(command - (cancel if working else 0.0), 1.0)
-    return _clip(command + drain, 1.0)
+    command = clip(command - (cancel if working else 0.0), 1.0)
+    return clip(command + drain, 1.0)
 
 
 @numba.njit(inline="always")
@@ -179,9 +170,9 @@ def _commands_episode(
     b0, b1, b2 = field[e, 0], field[e, 1], field[e, 2]
     # law.unloading_dipole, times the unloading switch, then law.rod_commands
     bb = max(b0 * b0 + b1 * b1 + b2 * b2, 1e-18)
-    want0 = _clip(unload_gain * (h1 * b2 - h2 * b1) / bb, m_max) * unload[e]
-    want1 = _clip(unload_gain * (h2 * b0 - h0 * b2) / bb, m_max) * unload[e]
-    want2 = _clip(unload_gain * (h0 * b1 - h1 * b0) / bb, m_max) * unload[e]
+    want0 = clip(unload_gain * (h1 * b2 - h2 * b1) / bb, m_max) * unload[e]
+    want1 = clip(unload_gain * (h2 * b0 - h0 * b2) / bb, m_max) * unload[e]
+    want2 = clip(unload_gain * (h0 * b1 - h1 * b0) / bb, m_max) * unload[e]
     g0, g1, g2 = rod_gain[e, 0], rod_gain[e, 1], rod_gain[e, 2]
     out[e, 4], out[e, 5], out[e, 6] = _rod(want0, g0, m_max), _rod(want1, g1, m_max), _rod(want2, g2, m_max)
     v0, v1, v2 = g0 * out[e, 4] * m_max, g1 * out[e, 5] * m_max, g2 * out[e, 6] * m_max
