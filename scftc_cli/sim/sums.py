@@ -50,6 +50,19 @@ def gemm4(x0, x1, x2, x3, b0, b1, b2, b3, single_row):  # pragma: no cover
 
 
 @numba.njit(inline="always")
+def gemm_entry(a, i, b, j, terms):  # pragma: no cover - compiled
+    """Entry ``(i, j)`` of ``a @ b`` summed over ``terms`` as OpenBLAS's ``dgemm`` and ``dsyrk``
+    sum an entry of a product of two or more rows (``gemm4``'s chain, any length): the first product
+    rounded, then one fused multiply-add per further term in order, from +0.0. ``a`` and ``b`` are
+    2-d arrays or views (a transposed view for ``x @ y.T``). Measured equal to numpy's ``@`` on
+    stacks of 3x3 @ 3x3, 6x6 @ 6x6, 6x3 @ 3x3 and the ``A @ A.T`` of 3x4 (docs/scaling.md)."""
+    total = a[i, 0] * b[0, j]
+    for k in range(1, terms):
+        total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
+    return 0.0 + total
+
+
+@numba.njit(inline="always")
 def gemm3(x0, x1, x2, g0, g1, g2, single_row):  # pragma: no cover - compiled
     """One output of ``x (n, 3) @ G.T`` (``G (m, 3)`` C-ordered, row ``g0..g2``) as numpy computes
     it: OpenBLAS's ``dgemm`` multiply-add chain for ``n >= 2``; for one row numpy calls ``dgemv``,

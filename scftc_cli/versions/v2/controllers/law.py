@@ -29,7 +29,7 @@ from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
-from scftc_cli.sim.sums import einsum3, fma, gemm4
+from scftc_cli.sim.sums import einsum3, gemm4, gemm_entry
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
 KD_S = 0.14
@@ -324,12 +324,10 @@ def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - co
     off the diagonal, which turns a -0.0 into +0.0 as numpy's addition does)."""
     m = matrix.shape[2]
     for e in numba.prange(matrix.shape[0]):
+        rows = matrix[e]
         for i in range(3):
             for j in range(3):
-                total = matrix[e, i, 0] * matrix[e, j, 0]
-                for k in range(1, m):
-                    total = fma(matrix[e, i, k], matrix[e, j, k], total)  # type: ignore[call-arg]
-                out[e, i, j] = 0.0 + total
+                out[e, i, j] = gemm_entry(rows, i, rows.T, j, m)
         trace = (out[e, 0, 0] + out[e, 1, 1]) + out[e, 2, 2]
         eps = damping * (trace if trace > 0.0 or not floor_zero_trace else 1.0)
         for i in range(3):
@@ -342,11 +340,10 @@ def _pinv_rows(matrix, inverse, out):  # pragma: no cover - compiled
     """``M' X`` ``(n, m, 3)`` of ``matrix`` ``(n, 3, m)`` and ``inverse`` ``(n, 3, 3)`` into ``out``,
     each entry as OpenBLAS's ``dgemm`` sums it (a multiply-add chain over the three rows, from +0.0)."""
     for e in numba.prange(matrix.shape[0]):
+        columns = matrix[e].T
         for i in range(matrix.shape[2]):
             for j in range(3):
-                total = matrix[e, 0, i] * inverse[e, 0, j]
-                total = fma(matrix[e, 1, i], inverse[e, 1, j], total)  # type: ignore[call-arg]
-                out[e, i, j] = 0.0 + fma(matrix[e, 2, i], inverse[e, 2, j], total)
+                out[e, i, j] = gemm_entry(columns, i, inverse[e], j, 3)
 
 
 def allocation(gain_hat: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:

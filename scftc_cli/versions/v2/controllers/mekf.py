@@ -41,7 +41,7 @@ from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import inverse3
-from scftc_cli.sim.sums import einsum3, fma
+from scftc_cli.sim.sums import einsum3, gemm_entry
 from scftc_cli.versions.v2.controllers.law import nearest_branch, rotation_mrp, vote
 
 
@@ -358,15 +358,6 @@ class MEKF:
 # numpy, instead of an exception.
 
 
-@numba.njit(inline="always")
-def _chain(a, i, b, j, terms):  # pragma: no cover - compiled
-    """``sum_k a[i, k] b[k, j]`` over ``terms`` as OpenBLAS sums one entry of a product."""
-    total = a[i, 0] * b[0, j]
-    for k in range(1, terms):
-        total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
-    return 0.0 + total
-
-
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _inv3_rows(m, out):  # pragma: no cover - compiled
     """``inv3_reference`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
@@ -387,27 +378,23 @@ def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no 
         s[1, 0], s[1, 1], s[1, 2] = w, 0.0, -x
         s[2, 0], s[2, 1], s[2, 2] = -y, x, 0.0
         b = np.empty((3, 3))
-        ptb_t = np.empty((3, 3))  # P_tb'
-        ptb = np.empty((3, 3))
-        pbb = np.empty((3, 3))
         for i in range(3):
             for j in range(3):
                 b[i, j] = -dt * ((1.0 if i == j else 0.0) - 0.5 * s[i, j])
-                ptb[i, j] = p[i, 3 + j]
-                ptb_t[i, j] = p[j, 3 + i]
-                pbb[i, j] = p[3 + i, 3 + j]
+        ptb, pbb = p[:3, 3:], p[3:, 3:]  # views of P's blocks
+        ptb_t = ptb.T
         a_ptt = np.empty((3, 3))
         a_ptb = np.empty((3, 3))
         for i in range(3):
             for j in range(3):
-                a_ptt[i, j] = _chain(a, i, p, j, 3) + _chain(b, i, ptb_t, j, 3)
-                a_ptb[i, j] = _chain(a, i, ptb, j, 3) + _chain(b, i, pbb, j, 3)
+                a_ptt[i, j] = gemm_entry(a, i, p, j, 3) + gemm_entry(b, i, ptb_t, j, 3)
+                a_ptb[i, j] = gemm_entry(a, i, ptb, j, 3) + gemm_entry(b, i, pbb, j, 3)
         a_t, b_t = a.T, b.T
         full = np.empty((6, 6))
         for i in range(3):
             for j in range(3):
                 eye = 1.0 if i == j else 0.0
-                full[i, j] = (_chain(a_ptt, i, a_t, j, 3) + _chain(a_ptb, i, b_t, j, 3)) + q_tt * eye
+                full[i, j] = (gemm_entry(a_ptt, i, a_t, j, 3) + gemm_entry(a_ptb, i, b_t, j, 3)) + q_tt * eye
                 full[i, 3 + j] = a_ptb[i, j] + q_tb * eye
                 full[3 + i, 3 + j] = pbb[i, j] + q_bb * eye
         for i in range(3):
@@ -437,7 +424,7 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
         K = np.empty((6, 3))
         for u in range(6):
             for v in range(3):
-                K[u, v] = _chain(p, u, s_inv, v, 3)
+                K[u, v] = gemm_entry(p, u, s_inv, v, 3)
         nu0, nu1, nu2 = nu_mean[row, 0], nu_mean[row, 1], nu_mean[row, 2]
         for u in range(6):
             out_dx[row, u] = einsum3(K[u, 0], K[u, 1], K[u, 2], nu0, nu1, nu2) if live else 0.0
@@ -450,12 +437,12 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
             left = np.empty((6, 6))
             for u in range(6):
                 for v in range(6):
-                    left[u, v] = _chain(ikh, u, p, v, 6)
+                    left[u, v] = gemm_entry(ikh, u, p, v, 6)
             ikh_t, k_t = ikh.T, K.T
             full = np.empty((6, 6))
             for u in range(6):
                 for v in range(6):
-                    full[u, v] = _chain(left, u, ikh_t, v, 6) + r * _chain(K, u, k_t, v, 3)
+                    full[u, v] = gemm_entry(left, u, ikh_t, v, 6) + r * gemm_entry(K, u, k_t, v, 3)
             for u in range(6):
                 for v in range(6):
                     out_p[row, u, v] = 0.5 * (full[u, v] + full[v, u])
