@@ -54,7 +54,9 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
-from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, as_f64, run_rows
+from scftc_cli.sim.scalars import clip, inverse3
+from scftc_cli.sim.sums import einsum3, gemm3
 from scftc_cli.versions.v2.controllers.mekf import inv3
 
 
@@ -170,29 +172,35 @@ def _shape_rk4(e, start, end, coulomb, js, w, cv, dt):  # pragma: no cover - com
     return start + dt / 6.0 * total - end, dt / 6.0 * total_e, s0, s1, s2, s3
 
 
+@numba.njit(inline="always")
+def _shape_row(a, b, c, js, w, cv, dt, iterations):  # pragma: no cover - compiled
+    """``friction_shape_reference`` of one wheel: the speeds ``a`` and ``b`` at the step's ends,
+    the Coulomb level ``c``; returns ``(shape, mean_speed, exact)``."""
+    e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
+    for _ in range(iterations):
+        miss, slope, _s0, _s1, _s2, _s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
+        e_next = e - miss / slope
+        if e_next == e and math.copysign(1.0, e_next) == math.copysign(1.0, e):
+            break  # a fixed point, bit for bit: the remaining iterations would repeat it
+        e = e_next
+    miss, _slope, s0, s1, s2, s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
+    total = 0.0 + 1.0 * _clip_unit(s0 / w)
+    total = total + 2.0 * _clip_unit(s1 / w)
+    total = total + 2.0 * _clip_unit(s2 / w)
+    speed = 0.0 + 1.0 * s0
+    speed = speed + 2.0 * s1
+    speed = speed + 2.0 * s2
+    return (total + 1.0 * _clip_unit(s3 / w)) / 6.0, (speed + 1.0 * s3) / 6.0, abs(miss) < 1e-9
+
+
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _friction_shape(
     start, end, coulomb, js, w, cv, dt, iterations, shape, mean_speed, exact
 ):  # pragma: no cover - compiled
     for j in numba.prange(start.shape[0]):
-        a, b, c = start[j], end[j], coulomb[j]
-        e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
-        for _ in range(iterations):
-            miss, slope, _s0, _s1, _s2, _s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
-            e_next = e - miss / slope
-            if e_next == e and math.copysign(1.0, e_next) == math.copysign(1.0, e):
-                break  # a fixed point, bit for bit: the remaining iterations would repeat it
-            e = e_next
-        miss, _slope, s0, s1, s2, s3 = _shape_rk4(e, a, b, c, js, w, cv, dt)
-        total = 0.0 + 1.0 * _clip_unit(s0 / w)
-        total = total + 2.0 * _clip_unit(s1 / w)
-        total = total + 2.0 * _clip_unit(s2 / w)
-        shape[j] = (total + 1.0 * _clip_unit(s3 / w)) / 6.0
-        speed = 0.0 + 1.0 * s0
-        speed = speed + 2.0 * s1
-        speed = speed + 2.0 * s2
-        mean_speed[j] = (speed + 1.0 * s3) / 6.0
-        exact[j] = abs(miss) < 1e-9
+        shape[j], mean_speed[j], exact[j] = _shape_row(
+            start[j], end[j], coulomb[j], js, w, cv, dt, iterations
+        )
 
 
 def friction_shape_reference(
@@ -278,6 +286,108 @@ def clamp(theta: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, cov
 
 
+def solved(
+    A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``solved_reference`` compiled, its bits: the ridge solve of every wheel in one pass
+    (``_solve_rows``), then ``clamped``. ``(..., 3, 3)``, ``(..., 3)`` in; ``(theta (..., 3),
+    cov (..., 3, 3))`` out."""
+    shape = np.shape(y)
+    rows = math.prod(shape[:-1])
+    theta, cov = np.empty((rows, 3)), np.empty((rows, 3, 3))
+    run_rows(
+        _solve_rows, as_f64(A).reshape(rows, 3, 3), as_f64(y).reshape(rows, 3),
+        as_f64(weight).reshape(rows, 3), as_f64(prior).reshape(rows, 3), theta, cov,
+        parallel=rows >= HEAVY_PARALLEL_MIN_BATCH,
+    )  # fmt: skip
+    clamped(theta, cov)
+    return theta.reshape(shape), cov.reshape(*shape, 3)
+
+
+def clamped(theta: np.ndarray, cov: np.ndarray) -> None:
+    """``clamp`` compiled, in place on ``theta`` ``(rows, 3)`` and ``cov`` ``(rows, 3, 3)``
+    (C-ordered float64), its bits: one component at a time, a pass that clips and decides which
+    rows move (``_clamp_rows``), then one that moves them (``_pin_rows``). The passes stay apart
+    because the numpy form moves the rows a component does not pin too (by ``column * 0.0``, which
+    turns a -0.0 into +0.0 and an infinite estimate into NaN) whenever it pins that component of
+    any row of the batch: each pass learns from the one before whether any row moved."""
+    rows = len(theta)
+    parallel = rows >= HEAVY_PARALLEL_MIN_BATCH
+    clipped, move = np.empty(rows), np.zeros(rows, dtype=np.bool_)
+    for j in (2, 0, 1):
+        run_rows(
+            _clamp_rows, theta, cov, j, float(LOWER[j]), float(UPPER[j]), clipped, move, parallel=parallel
+        )
+        run_rows(_pin_rows, theta, cov, j, clipped, move, bool(move.any()), parallel=parallel)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _solve_rows(A, y, weight, prior, theta, cov):  # pragma: no cover - compiled
+    """``inv3(A + diag(w))`` into ``cov`` and its product with ``y + w prior`` into ``theta``
+    (the einsum's three-term order), every row."""
+    for r in numba.prange(y.shape[0]):
+        m = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                m[i, j] = A[r, i, j] + weight[r, i] * (1.0 if i == j else 0.0)
+        inverse3(m, cov[r])
+        v0 = y[r, 0] + weight[r, 0] * prior[r, 0]
+        v1 = y[r, 1] + weight[r, 1] * prior[r, 1]
+        v2 = y[r, 2] + weight[r, 2] * prior[r, 2]
+        for i in range(3):
+            theta[r, i] = einsum3(cov[r, i, 0], cov[r, i, 1], cov[r, i, 2], v0, v1, v2)
+
+
+@numba.njit(inline="always")
+def _clip_range(v, low, high):  # pragma: no cover - compiled
+    """``np.clip(v, low, high)``: a NaN and a signed zero pass through."""
+    if v < low:
+        return low
+    if v > high:
+        return high
+    return v
+
+
+@numba.njit(cache=True, parallel=True)
+def _clamp_rows(theta, cov, j, low, high, clipped, move):  # pragma: no cover - compiled
+    """Component ``j`` of every row clipped into ``[low, high]`` (into ``clipped``), and whether the
+    clip moves it where its variance can carry the move (into ``move``)."""
+    for r in numba.prange(theta.shape[0]):
+        clipped[r] = _clip_range(theta[r, j], low, high)
+        move[r] = (clipped[r] != theta[r, j]) and (cov[r, j, j] > 1e-18)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _pin_rows(theta, cov, j, clipped, move, moved):  # pragma: no cover - compiled
+    """``clamp``'s step for component ``j`` given ``_clamp_rows``' verdicts: where any row of the
+    batch ``moved``, every row's estimate takes ``column * scale`` (``scale`` 0.0 where it does not
+    move) and a moving row's covariance is conditioned; then component ``j`` is the clipped one."""
+    for r in numba.prange(theta.shape[0]):
+        if moved:
+            var = cov[r, j, j]
+            scale = (clipped[r] - theta[r, j]) / (var if move[r] else 1.0) if move[r] else 0.0
+            c0, c1, c2 = cov[r, 0, j], cov[r, 1, j], cov[r, 2, j]
+            theta[r, 0] = theta[r, 0] + c0 * scale
+            theta[r, 1] = theta[r, 1] + c1 * scale
+            theta[r, 2] = theta[r, 2] + c2 * scale
+            if move[r]:
+                column = (c0, c1, c2)
+                for i in range(3):
+                    for k in range(3):
+                        cov[r, i, k] = cov[r, i, k] - column[i] * column[k] / var
+        theta[r, j] = clipped[r]
+
+
+def solved_reference(
+    A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(theta, cov)`` ``((..., 3), (..., 3, 3))`` of the ridge fit ``(A + diag(w))^-1 (y + w
+    prior)``, clamped into the physical bounds (``clamp``): ``solved``'s readable definition."""
+    cov = inv3(A + weight[..., :, None] * np.eye(3))
+    theta = np.einsum("nmij,nmj->nmi", cov, y + weight * prior)
+    return clamp(theta, cov)
+
+
 class WheelMonitor:
     """Detection and re-identification of every wheel of a batch (module docstring).
 
@@ -290,6 +400,8 @@ class WheelMonitor:
     ``change_log`` (a confirmed change), ``detected_step`` ``(n, m)`` (first confirmed change, -1
     if none).
     """
+
+    solver = staticmethod(solved)  # the ridge solve and clamp (``solved_reference``: its definition)
 
     def __init__(
         self,
@@ -387,19 +499,44 @@ class WheelMonitor:
         return x, tau, testable, linear
 
     def _solve(self, rows: np.ndarray | None = None) -> None:
-        """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance: of every wheel, or, with
-        ``rows`` ``(n, m)``, of those wheels only (computed on the episodes that hold one: each
-        wheel's solve is its own, so the same bits as solving the whole batch)."""
+        """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance (``solver``): of every
+        wheel, or, with ``rows`` ``(n, m)``, of those wheels only (computed on the episodes that
+        hold one: each wheel's solve is its own, so the same bits as solving the whole batch)."""
         if rows is None:
-            self.theta, self.cov = _solved(self.A, self.y, self.prior_weight, self.prior)
+            self.theta, self.cov = self.solver(self.A, self.y, self.prior_weight, self.prior)
             return
         at = np.flatnonzero(rows.any(axis=1))
-        theta, cov = _solved(self.A[at], self.y[at], self.prior_weight[at], self.prior[at])
+        theta, cov = self.solver(self.A[at], self.y[at], self.prior_weight[at], self.prior[at])
         self.cov[at] = np.where(rows[at][..., None, None], cov, self.cov[at])
         self.theta[at] = np.where(rows[at][..., None], theta, self.theta[at])
 
     def observe(self, tach: np.ndarray, gyro: np.ndarray) -> None:
-        """Fold in the step just flown: test, accumulate, re-identify."""
+        """Fold in the step just flown: test, accumulate, re-identify. The sample, its test, the
+        ring buffer, the window's sums and the CUSUM in one compiled pass over the wheels
+        (``_observe_rows``), the solve compiled (``solved``), an alarm's decision in numpy: the
+        bits of ``observe_reference``."""
+        s, w = self.s, self.w
+        alarm = np.zeros((self.n, self.m), dtype=bool)
+        change = np.zeros_like(alarm)
+        statistic = np.zeros((self.n, self.m))
+        tach, gyro = as_f64(tach), as_f64(gyro)
+        if self.last_tach is not None and self.last_gyro is not None:
+            run_rows(
+                _observe_rows, tach, gyro, self.last_tach, self.last_gyro, as_f64(self.last_command),
+                as_f64(w.spin_axes), self.theta, float(w.spin_inertia_kgm2), float(w.u_max_nm),
+                float(self.dt), float(w.viscous_nms), float(w.omega_linear_rad_s),
+                float(w.omega_max_rad_s - 0.5), float(1.0 - s.clip_margin), self.sigma, float(s.drift),
+                float(s.threshold), self.k % s.buffer, len(tach) == 1, self.buf_x, self.buf_tau,
+                self.buf_ok, self.buf_z, self.buf_tested, self.A, self.y, self.cusum, self.since_zero,
+                statistic, alarm, parallel=self.n >= HEAVY_PARALLEL_MIN_BATCH,
+            )  # fmt: skip
+            self._solve()
+            if alarm.any():
+                change = self._on_alarm(alarm)
+        self._conclude(alarm, change, statistic, tach, gyro)
+
+    def observe_reference(self, tach: np.ndarray, gyro: np.ndarray) -> None:
+        """``observe`` in numpy: its readable definition."""
         s = self.s
         alarm = np.zeros((self.n, self.m), dtype=bool)
         change = np.zeros_like(alarm)
@@ -426,6 +563,13 @@ class WheelMonitor:
             self._solve()
             if alarm.any():
                 change = self._on_alarm(alarm)
+        self._conclude(alarm, change, statistic, tach, gyro)
+
+    def _conclude(
+        self, alarm: np.ndarray, change: np.ndarray, statistic: np.ndarray, tach: np.ndarray, gyro: np.ndarray
+    ) -> None:
+        """The step's verdicts (isolation, dead wheels, the logs) and what the next step needs."""
+        s = self.s
         known = self.cov[..., 0, 0] < s.reid_sd**2  # the effectiveness is re-identified
         self.isolated = (self.isolated | change) & ~known
         size = np.abs(self.gain)
@@ -434,7 +578,7 @@ class WheelMonitor:
         self.statistic_log.append(statistic)
         self.change_log.append(change)
         self.detected_step = np.where(change & (self.detected_step < 0), self.k, self.detected_step)
-        self.last_tach, self.last_gyro = tach.copy(), gyro.copy()
+        self.last_tach, self.last_gyro = np.array(tach, dtype=np.float64), np.array(gyro, dtype=np.float64)
         self.k += 1
 
     def _on_alarm(self, alarm: np.ndarray) -> np.ndarray:
@@ -486,11 +630,78 @@ class WheelMonitor:
         return change
 
 
-def _solved(
-    A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(theta, cov)`` ``((..., 3), (..., 3, 3))`` of the ridge fit ``(A + diag(w))^-1 (y + w
-    prior)``, clamped into the physical bounds (``clamp``)."""
-    cov = inv3(A + weight[..., :, None] * np.eye(3))
-    theta = np.einsum("nmij,nmj->nmi", cov, y + weight * prior)
-    return clamp(theta, cov)
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _observe_rows(
+    tach,
+    gyro,
+    last_tach,
+    last_gyro,
+    command,
+    axes,
+    theta,
+    js,
+    u,
+    dt,
+    cv,
+    w_lin,
+    speed_limit,
+    linear_below,
+    sigma,
+    drift,
+    threshold,
+    slot,
+    single_row,
+    buf_x,
+    buf_tau,
+    buf_ok,
+    buf_z,
+    buf_tested,
+    A,
+    y,
+    cusum,
+    since_zero,
+    statistic,
+    alarm,
+):  # pragma: no cover - compiled
+    """``observe_reference`` up to its solve, every wheel of every episode: the sample
+    (``WheelMonitor._sample``), its normalized residual against the a-priori estimate ``theta``,
+    the ring buffer's ``slot``, the window's sums ``A`` and ``y`` and the CUSUM (``cusum``,
+    ``since_zero``) in place; the statistic and the alarms into ``statistic`` and ``alarm``. The
+    same operations in the same order as the numpy form (the wheel rates' ``@`` as numpy's, for one
+    row or many: ``single_row``). ``np.maximum(0.0, v)`` is ``v`` or ``0.0`` as below: ``v``, a sum
+    minus the positive drift, is never -0.0."""
+    for e in numba.prange(tach.shape[0]):
+        d0, d1, d2 = gyro[e, 0] - last_gyro[e, 0], gyro[e, 1] - last_gyro[e, 1], gyro[e, 2] - last_gyro[e, 2]
+        for i in range(tach.shape[1]):
+            dw = gemm3(d0, d1, d2, axes[i, 0], axes[i, 1], axes[i, 2], single_row)
+            tau = js * ((tach[e, i] - last_tach[e, i]) + dw) / dt / u
+            gain, bias, level = theta[e, i, 0], theta[e, i, 1], theta[e, i, 2]
+            shape, mean_speed, exact = _shape_row(
+                last_tach[e, i], tach[e, i], level * u, js, w_lin, cv, dt, 8
+            )
+            tau = tau + cv * mean_speed / u
+            a, x2 = command[e, i], -shape
+            testable = exact and abs(last_tach[e, i]) < speed_limit
+            ok = testable and abs(tau + level * shape) < linear_below
+            predicted = clip(gain * a + bias, 1.0) + level * x2
+            z = (tau - predicted) / sigma if testable else 0.0
+            buf_x[slot, e, i, 0], buf_x[slot, e, i, 1], buf_x[slot, e, i, 2] = a, 1.0, x2
+            buf_tau[slot, e, i], buf_ok[slot, e, i], buf_z[slot, e, i] = tau, ok, z
+            buf_tested[slot, e, i] = testable
+            xw = ((a if ok else 0.0) / sigma, (1.0 if ok else 0.0) / sigma, (x2 if ok else 0.0) / sigma)
+            held = tau if ok else 0.0
+            for p in range(3):
+                for q in range(3):
+                    A[e, i, p, q] += xw[p] * xw[q]
+                y[e, i, p] += xw[p] * held / sigma
+            if testable:
+                up = cusum[e, i, 0] + z - drift
+                down = cusum[e, i, 1] - z - drift
+                cusum[e, i, 0] = up if (up > 0.0 or up != up) else 0.0
+                cusum[e, i, 1] = down if (down > 0.0 or down != down) else 0.0
+            for side in range(2):
+                since_zero[e, i, side] = since_zero[e, i, side] + 1 if cusum[e, i, side] > 0.0 else 0
+            c0, c1 = cusum[e, i, 0], cusum[e, i, 1]
+            top = np.nan if (c0 != c0 or c1 != c1) else (c0 if c0 >= c1 else c1)
+            statistic[e, i] = top
+            alarm[e, i] = top > threshold and testable
