@@ -105,7 +105,7 @@ def test_stacks_keep_order_bound_size_and_respect_cell_wide_sensor_faults() -> N
         assert len({v1_cells[i].sensor for i in group}) == 1  # v1's sensors hold one cell's fault
 
 
-def test_a_cluster_flies_a_built_in_as_one_stack_per_worker_and_a_submission_cell_by_cell() -> None:
+def test_a_cluster_flies_a_built_in_as_one_stack_per_worker_and_a_submission_in_turn() -> None:
     from scftc_cli.distributed.refs import BuiltinRef, SubmissionRef
     from scftc_cli.evaluate import cluster_tasks
 
@@ -115,7 +115,9 @@ def test_a_cluster_flies_a_built_in_as_one_stack_per_worker_and_a_submission_cel
     assert [len(t.parts) for t in built_in] == [-(-len(cells) // 2), len(cells) // 2]
     assert [p.fault_class for t in built_in for p in t.parts] == [c.fault_class for c in cells]
     submitted = cluster_tasks(SubmissionRef("x.py", b"SUBMISSION = {}"), spec, cells, workers=2)
-    assert [len(t.parts) for t in submitted] == [1] * len(cells)
+    assert [len(t.parts) for t in submitted] == [-(-len(cells) // 2), len(cells) // 2]
+    assert all(t.in_turn for t in submitted) and not any(t.in_turn for t in built_in)
+    assert [p.fault_class for t in submitted for p in t.parts] == [c.fault_class for c in cells]
 
 
 @pytest.mark.parametrize("version", version_names())

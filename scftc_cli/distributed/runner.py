@@ -63,10 +63,16 @@ def run_chunk(task: ChunkTask) -> EpisodeOutcomes:
 class StackTask:
     """Chunks of several cells flown as one batch by one controller (a built-in's: its rows are
     independent, so each chunk comes out as if flown alone; ``evaluate.evaluate_stacked``), and
-    what to read off that controller afterwards (``reader``, an ``evaluate.StackReader``)."""
+    what to read off that controller afterwards (``reader``, an ``evaluate.StackReader``).
+
+    ``in_turn``: the chunks flown one after another instead, each its own batch, by the one
+    controller (a submission's, whose rows need not be independent: each cell is flown exactly as
+    on the submitting machine, where one sandbox flies a draw's cells in turn). One sandbox then
+    serves several cells instead of being started for each."""
 
     parts: tuple[ChunkTask, ...]
     reader: Callable[..., Any] | None = None
+    in_turn: bool = False
 
     @property
     def steps(self) -> int:
@@ -100,7 +106,12 @@ def run_stack(task: StackTask) -> StackFlight:
     make, cleanup = first.ref.factory()
     try:
         controller = make()
-        flown = rollout_parts(controller, parts, backend=first.backend, trace_first=True)
+        if task.in_turn:
+            flown = [
+                rollout_parts(controller, [p], backend=first.backend, trace_first=True)[0] for p in parts
+            ]
+        else:
+            flown = rollout_parts(controller, parts, backend=first.backend, trace_first=True)
         readings = tuple(
             None
             if task.reader is None

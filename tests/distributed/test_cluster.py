@@ -24,13 +24,14 @@ from scftc_cli.board.flights import Scoring
 from scftc_cli.board.rounds import new_key
 from scftc_cli.board.verify import verify
 from scftc_cli.commands.app import app
-from scftc_cli.distributed.refs import BuiltinRef
+from scftc_cli.distributed.refs import BuiltinRef, SubmissionRef
 from scftc_cli.distributed.runner import ChunkTask, Runner, StackTask, cluster, run_chunk, run_stack
 from scftc_cli.errors import ScftcError
 from scftc_cli.evaluate import Cell, evaluate_cells, select_cells
 from scftc_cli.registry import make_controller, registry
 from scftc_cli.training import TrainRequest, tuning
 from scftc_cli.versions.v1.spec import V1
+from tests.sandbox import needs_sandbox
 
 runner_cli = CliRunner()
 CELLS = select_cells(V1, "test", None, None) + [Cell("test", "sign", "bias_0.2")]
@@ -120,6 +121,21 @@ def test_chunked_cluster_runs_are_bit_identical_to_the_serial_run(name, dask_run
         ref = BuiltinRef(name, V1.version)
         runs = evaluate_cells(None, V1, CELLS, n_faults=6, n_seeds=4, runner=dask_runner, ref=ref)  # type: ignore[arg-type]
         _same(runs, serial)
+
+
+@needs_sandbox
+def test_a_submission_flown_in_turn_on_the_cluster_equals_its_serial_flight(dask_runner: Runner):
+    """On a cluster a submission's cells are shared out over the workers, each share flown in turn
+    by one sandbox: every cell equal to the flight of the whole draw in one sandbox in process."""
+    from scftc_cli.board.flights import budget, fly_submission
+    from scftc_cli.submission.manifest import load_submission
+
+    sub = load_submission(Path(__file__).parents[2] / "submissions" / "example_pd_plus" / "pd_plus.py")
+    scoring = Scoring(V1, n_faults=3, n_seeds=2)
+    serial, _ = fly_submission(sub, scoring, b"", budget(scoring), CELLS)
+    ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
+    runs = evaluate_cells(None, V1, CELLS, n_faults=3, n_seeds=2, runner=dask_runner, ref=ref)  # type: ignore[arg-type]
+    assert [r.result for r in runs] == serial
 
 
 def test_prefetched_work_is_taken_by_map_not_submitted_again(dask_runner: Runner, monkeypatch):
