@@ -42,7 +42,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
-from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, run_rows
+from scftc_cli.sim.rows import CHUNK_ROWS, HEAVY_PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.adaptive import predicted_torque, sample_weight
 from scftc_cli.versions.v2.controllers.estimators import (
     ChangeDetector,
@@ -117,6 +117,36 @@ def _score(m0: float, m1: float, m2: float, m3: float, m4: float, m5: float) -> 
 
 
 @numba.njit(inline="always")
+def _score_setup(m11, m12, m13, m22, m23, m33):  # pragma: no cover - compiled
+    """``_score`` up to its transcendental calls, for a loop LLVM can vectorize: ``_eig_extremes``'
+    ``(q, p, r, degenerate)`` and ``_eig2_min``, the same operations in the same order (the
+    quantities of the degenerate case are computed too, and unused: the caller compiles with
+    numpy's error model, so a zero ``p`` gives NaN instead of an exception)."""
+    q = (m11 + m22 + m33) / 3.0
+    p1 = m12 * m12 + m13 * m13 + m23 * m23
+    p2 = (m11 - q) ** 2 + (m22 - q) ** 2 + (m33 - q) ** 2 + 2.0 * p1
+    degenerate = p2 <= 1e-30 * max(q * q, 1e-300)
+    p = math.sqrt(p2 / 6.0)
+    b11, b22, b33 = (m11 - q) / p, (m22 - q) / p, (m33 - q) / p
+    b12, b13, b23 = m12 / p, m13 / p, m23 / p
+    r = 0.5 * (b11 * (b22 * b33 - b23 * b23) - b12 * (b12 * b33 - b23 * b13) + b13 * (b12 * b23 - b22 * b13))
+    r = min(max(r, -1.0), 1.0)
+    mean = 0.5 * (m11 + m22)
+    return q, p, r, degenerate, mean - math.sqrt(0.25 * (m11 - m22) ** 2 + m12 * m12)
+
+
+@numba.njit(inline="always")
+def _score_finish(q, p, r, degenerate, tie):  # pragma: no cover - compiled
+    """``_score`` from ``_score_setup``'s figures: ``lambda_min`` by the trigonometric form."""
+    if degenerate:
+        smallest = q
+    else:
+        phi = math.acos(r) / 3.0
+        smallest = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    return max(smallest, 0.0) + FRICTION_TIE * tie
+
+
+@numba.njit(inline="always")
 def _information(ys, used, e, w):  # pragma: no cover - compiled
     """The information entries ``(M11, M12, M13, M22, M23, M33)`` of the used slots of episode
     ``e``'s stack of wheel ``w`` (``M = sum_j Y_j Y_j'``, slot by slot), and its first free slot
@@ -164,11 +194,58 @@ def stack_offer(
     )
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, error_model="numpy", parallel=True)
 def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compiled
-    """``stack_offer``'s loop, one episode per ``prange`` row."""
+    """``stack_offer``'s loop, chunks of ``CHUNK_ROWS`` episodes per ``prange`` row: the bits of
+    ``_offer_rows_reference``. A full stack's candidates are scored in two passes, the arithmetic
+    of all of them first (``_score_setup``: a loop without calls, which LLVM vectorizes), then the
+    two transcendental calls of each and the choice (``_score_finish``), into scratch kept per
+    chunk."""
     n, m, size = used.shape
-    for e in numba.prange(n):
+    for c in numba.prange((n + CHUNK_ROWS - 1) // CHUNK_ROWS):
+        qs, ps, rs, ties = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+        degenerate = np.empty(size, dtype=np.bool_)
+        for e in range(c * CHUNK_ROWS, min(n, (c + 1) * CHUNK_ROWS)):
+            for w in range(m):
+                if not offer[e, w]:
+                    continue
+                i0, i1, i2, i3, i4, i5, free = _information(ys, used, e, w)
+                if free >= 0:
+                    ys[e, w, free, 0] = y[e, w, 0]
+                    ys[e, w, free, 1] = y[e, w, 1]
+                    ys[e, w, free, 2] = y[e, w, 2]
+                    us[e, w, free] = u[e, w]
+                    used[e, w, free] = True
+                    continue
+                now = _score(i0, i1, i2, i3, i4, i5)
+                na, no, ns = y[e, w, 0], y[e, w, 1], y[e, w, 2]
+                for j in range(size):
+                    a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
+                    qs[j], ps[j], rs[j], degenerate[j], ties[j] = _score_setup(
+                        i0 - a * a + na * na,
+                        i1 - a * one + na * no,
+                        i2 - a * s + na * ns,
+                        i3 - one * one + no * no,
+                        i4 - one * s + no * ns,
+                        i5 - s * s + ns * ns,
+                    )
+                best, best_j = -np.inf, -1
+                for j in range(size):
+                    score = _score_finish(qs[j], ps[j], rs[j], degenerate[j], ties[j])
+                    if score > best:
+                        best, best_j = score, j
+                if best > margin * now + 1e-12:
+                    ys[e, w, best_j, 0] = y[e, w, 0]
+                    ys[e, w, best_j, 1] = y[e, w, 1]
+                    ys[e, w, best_j, 2] = y[e, w, 2]
+                    us[e, w, best_j] = u[e, w]
+
+
+@numba.njit(cache=True)
+def _offer_rows_reference(ys, us, used, y, u, offer, margin):  # pragma: no cover - compiled
+    """``_offer_rows`` one candidate at a time through ``_score``: its readable definition."""
+    n, m, size = used.shape
+    for e in range(n):
         for w in range(m):
             if not offer[e, w]:
                 continue
