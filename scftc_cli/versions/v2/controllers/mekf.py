@@ -233,6 +233,46 @@ class MEKF:
             axis=1,
         )
 
+    def _head_tests(
+        self, heads: np.ndarray, candidate: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each head's innovation ``nu`` ``(n, h, 3)`` rad, its normalized squared size against the
+        prediction ``nis`` ``(n, h)``, and the inter-head outliers ``(n, h)`` among the
+        ``candidate`` heads. Two compiled passes around numpy's ``arctan`` (whose SIMD loop is
+        not libm's ``atan``: they differ in the last bit on about one value in a thousand), the
+        bits of ``_head_tests_reference``."""
+        n, h = len(heads), self.heads
+        v, size = np.empty((h, n, 3)), np.empty((h, n))
+        parallel = n >= PARALLEL_MIN_BATCH
+        run_rows(_branch_rows, as_f64(heads), as_f64(self.sigma), v, size, parallel=parallel)
+        turned = np.stack([np.arctan(size[i]) for i in range(h)])  # one (n,) call per head, as the numpy form
+        nu, nis, outlier = np.empty((n, h, 3)), np.empty((n, h)), np.empty((n, h), dtype=np.bool_)
+        run_rows(
+            _head_test_rows, v, size, turned, self.P, float(self.r_var), float(2.0 * self.r_var),
+            np.ascontiguousarray(candidate, dtype=np.bool_), float(self.s.gate), nu, nis, outlier,
+            parallel=parallel,
+        )  # fmt: skip
+        return nu, nis, outlier
+
+    def _head_tests_reference(
+        self, heads: np.ndarray, candidate: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``_head_tests`` in numpy: its readable definition."""
+        s = self.s
+        nu = self._innovations(heads)
+        S = self.P[:, :3, :3] + self.r_var * np.eye(3)
+        nis = np.einsum("nhi,nij,nhj->nh", nu, inv3(S), nu)
+        # inter-head consistency: an outlier disagrees with every other candidate head, while at
+        # least one other candidate is no outlier (a majority against it)
+        h = self.heads
+        diff = nu[:, :, None, :] - nu[:, None, :, :]
+        pair = norm2(diff) / (2.0 * self.r_var)  # (n, h, h): chi-square, 3 dof, per pair
+        others = candidate[:, None, :] & ~np.eye(h, dtype=bool)[None]
+        closest = np.where(others, pair, np.inf).min(axis=2)
+        outlier = candidate & (closest > s.gate)
+        outlier &= (candidate & ~outlier).any(axis=1)[:, None]
+        return nu, nis, outlier
+
     def _update(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
         """Kalman update with the mean innovation of ``count`` heads (rows with ``count == 0`` are
         left alone); returns the normalized fused innovation ``(n, 3)`` (zero where not updated).
@@ -287,19 +327,8 @@ class MEKF:
         self.stuck |= repeat
         self.last_heads, self.last_valid = heads.copy(), valid.copy()
 
-        nu = self._innovations(heads)
-        S = self.P[:, :3, :3] + self.r_var * np.eye(3)
-        nis = np.einsum("nhi,nij,nhj->nh", nu, inv3(S), nu)
         candidate = valid & ~self.stuck
-        # inter-head consistency: an outlier disagrees with every other candidate head, while at
-        # least one other candidate is no outlier (a majority against it)
-        h = self.heads
-        diff = nu[:, :, None, :] - nu[:, None, :, :]
-        pair = norm2(diff) / (2.0 * self.r_var)  # (n, h, h): chi-square, 3 dof, per pair
-        others = candidate[:, None, :] & ~np.eye(h, dtype=bool)[None]
-        closest = np.where(others, pair, np.inf).min(axis=2)
-        outlier = candidate & (closest > s.gate)
-        outlier &= (candidate & ~outlier).any(axis=1)[:, None]
+        nu, nis, outlier = self._head_tests(heads, candidate)
         self.fail_run = np.where(outlier, self.fail_run + 1, 0)
         self.pass_run = np.where(
             candidate & ~outlier, self.pass_run + 1, np.where(candidate, 0, self.pass_run)
@@ -452,3 +481,91 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
                     out_p[row, u, v] = p[u, v]
         for u in range(3):
             out_z[row, u] = nu_mean[row, u] / np.sqrt(S[u, u]) if live else 0.0
+
+
+@numba.njit(inline="always")
+def _norm2(a0, a1, a2):  # pragma: no cover - compiled
+    """``sim/mrp.norm2`` of one row (its fixed order)."""
+    return a0 * a0 + a1 * a1 + a2 * a2
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
+    """``MEKF._innovations`` up to its ``arctan``: per episode and head, the reading on its branch
+    nearest the estimate (``law.nearest_branch``), composed with the estimate's inverse
+    (``sim/mrp.compose``, shadow-switched) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
+    ``size`` ``(h, n)``; the same operations in the same order as the numpy functions."""
+    for e in numba.prange(heads.shape[0]):
+        r0, r1, r2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+        f0, f1, f2 = -r0, -r1, -r2  # the estimate's inverse
+        a2 = _norm2(f0, f1, f2)
+        for h in range(heads.shape[1]):
+            x0, x1, x2 = heads[e, h, 0], heads[e, h, 1], heads[e, h, 2]
+            s2 = _norm2(x0, x1, x2)
+            d = s2 if s2 > 0.0 else 1.0
+            w0, w1, w2 = -x0 / d, -x1 / d, -x2 / d
+            if s2 > 0.0 and _norm2(w0 - r0, w1 - r1, w2 - r2) < _norm2(x0 - r0, x1 - r1, x2 - r2):
+                x0, x1, x2 = w0, w1, w2
+            b2 = _norm2(x0, x1, x2)
+            ab = f0 * x0 + f1 * x1 + f2 * x2
+            c0, c1, c2 = x1 * f2 - x2 * f1, x2 * f0 - x0 * f2, x0 * f1 - x1 * f0  # second x first
+            n0 = (1.0 - a2) * x0 + (1.0 - b2) * f0 - 2.0 * c0
+            n1 = (1.0 - a2) * x1 + (1.0 - b2) * f1 - 2.0 * c1
+            n2 = (1.0 - a2) * x2 + (1.0 - b2) * f2 - 2.0 * c2
+            den = 1.0 + a2 * b2 - 2.0 * ab
+            if den > 1e-12:
+                q0, q1, q2 = n0 / den, n1 / den, n2 / den
+            else:
+                q0, q1, q2 = 0.0, 0.0, 0.0
+            t2 = _norm2(q0, q1, q2)
+            if t2 > 1.0:
+                q0, q1, q2 = -q0 / t2, -q1 / t2, -q2 / t2
+            v[h, e, 0], v[h, e, 1], v[h, e, 2] = q0, q1, q2
+            size[h, e] = np.sqrt(_norm2(q0, q1, q2))
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _head_test_rows(
+    v, size, turned, P, r_var, two_r_var, candidate, gate, nu, nis, outlier
+):  # pragma: no cover - compiled
+    """``MEKF._head_tests_reference`` from ``_branch_rows``' ``v`` and ``size`` and numpy's
+    ``arctan(size)`` (``turned``): the rotation vectors ``nu``, their ``nis`` against ``S = P_tt +
+    r I`` (the three-operand einsum's order: every product ``nu_i S^-1_ij nu_j`` added in turn, i
+    then j, to +0.0) and the outliers (``np.min``'s NaN kept)."""
+    heads = v.shape[0]
+    for e in numba.prange(v.shape[1]):
+        m, s_inv = np.empty((3, 3)), np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                m[i, j] = P[e, i, j] + r_var * (1.0 if i == j else 0.0)
+        inverse3(m, s_inv)
+        for h in range(heads):
+            ratio = 4.0 * turned[h, e] / size[h, e] if size[h, e] > 1e-12 else 4.0
+            for i in range(3):
+                nu[e, h, i] = ratio * v[h, e, i]
+            total = nu[e, h, 0] * s_inv[0, 0] * nu[e, h, 0]
+            for i in range(3):
+                for j in range(3):
+                    if i > 0 or j > 0:
+                        total = total + nu[e, h, i] * s_inv[i, j] * nu[e, h, j]
+            nis[e, h] = 0.0 + total
+        keep = False
+        for h in range(heads):
+            closest = np.inf
+            for g in range(heads):
+                pair = np.inf
+                if g != h and candidate[e, g]:
+                    d0, d1, d2 = (
+                        nu[e, h, 0] - nu[e, g, 0],
+                        nu[e, h, 1] - nu[e, g, 1],
+                        nu[e, h, 2] - nu[e, g, 2],
+                    )
+                    pair = _norm2(d0, d1, d2) / two_r_var
+                if closest != closest or pair != pair:
+                    closest = np.nan
+                elif pair < closest:
+                    closest = pair
+            outlier[e, h] = candidate[e, h] and closest > gate
+            keep = keep or (candidate[e, h] and not outlier[e, h])
+        for h in range(heads):
+            outlier[e, h] = outlier[e, h] and keep

@@ -1,7 +1,8 @@
 """``fdir``'s compiled algebra (v2) gives the bits of its numpy form: the MEKF's covariance
-(``_propagation_rows``, ``_update_rows``) step after step, flown in lockstep with a filter on the
-numpy methods through noisy heads, a head fault, a gyro-bias step, an outage and episodes with no
-valid head; the adjugate inverse ``inv3``; the allocation ``pseudo_inverse3``."""
+(``_propagation_rows``, ``_update_rows``) and head tests (``_branch_rows``, ``_head_test_rows``)
+step after step, flown in lockstep with a filter on the numpy methods through noisy heads, a head
+fault, a gyro-bias step, an outage and episodes with no valid head; the head tests alone on heads
+built to reach every branch; the adjugate inverse ``inv3``; the allocation ``pseudo_inverse3``."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ class NumpyMEKF(MEKF):
 
     _propagate = MEKF._propagate_reference
     _update = MEKF._update_reference
+    _head_tests = MEKF._head_tests_reference
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
@@ -60,6 +62,37 @@ def test_the_compiled_filter_gives_the_bits_of_its_numpy_definition(n: int) -> N
         updated_and_not |= bool(compiled.used.any(axis=1).any() and not compiled.used.any(axis=1).all())
     assert updated_and_not or n == 1  # rows with and without an update side by side
     assert np.abs(compiled.bias).max() > 0.0  # it estimated something
+
+
+@pytest.mark.parametrize("n", [1, 13, 5_003])
+def test_the_compiled_head_tests_give_the_bits_of_their_numpy_definition(n: int) -> None:
+    """The innovations, their NIS and the outliers on heads near the estimate, on the far branch
+    (``|sigma| > 1``), at zero, equal to the estimate, a NaN head and heads off by a large bias,
+    with every mix of candidate heads."""
+    rng = np.random.default_rng(n + 1)
+    settings = load_fdir_params().mekf()
+    compiled = MEKF(n, SENSORS, DT, settings)
+    compiled.sigma = rng.uniform(-0.4, 0.4, (n, 3))
+    root = rng.normal(size=(n, 6, 6)) * 1e-4
+    compiled.P = root @ np.swapaxes(root, 1, 2)
+    heads = np.stack([compose(compiled.sigma, 3e-5 * rng.standard_normal((n, 3))) for _ in range(3)], axis=1)
+    far = rng.random(n) < 0.2
+    s2 = np.sum(heads[far, 0] ** 2, axis=1, keepdims=True)
+    heads[far, 0] = -heads[far, 0] / s2  # the same attitude on the shadow branch
+    heads[1::5, 1] = compose(heads[1::5, 1], np.full((len(heads[1::5]), 3), 2e-3))  # a biased head
+    heads[2::7, 2] = compiled.sigma[2::7]  # exactly the estimate
+    heads[3::11, 1] = 0.0
+    heads[4::13, 2] = np.nan
+    candidate = rng.random((n, 3)) < 0.8
+    got = compiled._head_tests(heads, candidate)
+    with np.errstate(invalid="ignore"):
+        want = MEKF._head_tests_reference(compiled, heads, candidate)
+    for a, b in zip(got, want, strict=True):
+        assert a.shape == b.shape
+        np.testing.assert_array_equal(
+            _bits(a) if a.dtype == np.float64 else a, _bits(b) if b.dtype == np.float64 else b
+        )
+    assert n < 13 or want[2].any()  # outliers found
 
 
 @pytest.mark.parametrize("shape", [(1,), (7,), (5_003,), (6, 4)])
