@@ -251,8 +251,8 @@ def fly_submission(
 
 
 def score_submission(sub: Submission, scoring: Scoring, draws: Draws, deadline: float | None = None) -> Flown:
-    """Per-draw cell results of a submission: one sandbox per draw (on a cluster: one per chunk,
-    on the workers)."""
+    """Per-draw cell results of a submission: one sandbox per draw (on a cluster: one per worker's
+    share of a draw's cells, flown in turn on the workers; ``evaluate.cluster_tasks``)."""
     if scoring.runner is not None:
         ref = SubmissionRef(sub.path.name, sub.source, scoring.limits)
         return _score(_built_on_workers, ref, scoring, draws, sub.manifest.name)
