@@ -27,10 +27,9 @@ def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(inline="always")
-def _relative_row(e, sigma, reference, out):  # pragma: no cover - compiled
-    """``compose(-reference, sigma)`` of row ``e`` (Schaub & Junkins eq. 3.154, then the shadow set)."""
-    f0, f1, f2 = -reference[e, 0], -reference[e, 1], -reference[e, 2]
-    s0, s1, s2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
+def compose_row(f0, f1, f2, s0, s1, s2):  # pragma: no cover - compiled
+    """``sim/mrp.compose`` of one row: the rotation ``f`` followed by ``s`` (Schaub & Junkins eq.
+    3.154, then the shadow set), the same operations in the same order; for numba kernels."""
     a2 = f0 * f0 + f1 * f1 + f2 * f2
     b2 = s0 * s0 + s1 * s1 + s2 * s2
     ab = f0 * s0 + f1 * s1 + f2 * s2
@@ -46,7 +45,15 @@ def _relative_row(e, sigma, reference, out):  # pragma: no cover - compiled
     q2 = x0 * x0 + x1 * x1 + x2 * x2
     if q2 > 1.0:
         x0, x1, x2 = -x0 / q2, -x1 / q2, -x2 / q2
-    out[e, 0], out[e, 1], out[e, 2] = x0, x1, x2
+    return x0, x1, x2
+
+
+@numba.njit(inline="always")
+def _relative_row(e, sigma, reference, out):  # pragma: no cover - compiled
+    """``compose(-reference, sigma)`` of row ``e``."""
+    out[e, 0], out[e, 1], out[e, 2] = compose_row(
+        -reference[e, 0], -reference[e, 1], -reference[e, 2], sigma[e, 0], sigma[e, 1], sigma[e, 2]
+    )
 
 
 @numba.njit(parallel=True, cache=True)

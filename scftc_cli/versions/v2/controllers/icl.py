@@ -147,6 +147,16 @@ def _score_finish(q, p, r, degenerate, tie):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
+def _store(ys, us, used, e, w, j, y, u):  # pragma: no cover - compiled
+    """Window ``(y, u)`` of episode ``e``'s wheel ``w`` into slot ``j`` of its stack."""
+    ys[e, w, j, 0] = y[e, w, 0]
+    ys[e, w, j, 1] = y[e, w, 1]
+    ys[e, w, j, 2] = y[e, w, 2]
+    us[e, w, j] = u[e, w]
+    used[e, w, j] = True
+
+
+@numba.njit(inline="always")
 def _information(ys, used, e, w):  # pragma: no cover - compiled
     """The information entries ``(M11, M12, M13, M22, M23, M33)`` of the used slots of episode
     ``e``'s stack of wheel ``w`` (``M = sum_j Y_j Y_j'``, slot by slot), and its first free slot
@@ -211,11 +221,7 @@ def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compil
                     continue
                 i0, i1, i2, i3, i4, i5, free = _information(ys, used, e, w)
                 if free >= 0:
-                    ys[e, w, free, 0] = y[e, w, 0]
-                    ys[e, w, free, 1] = y[e, w, 1]
-                    ys[e, w, free, 2] = y[e, w, 2]
-                    us[e, w, free] = u[e, w]
-                    used[e, w, free] = True
+                    _store(ys, us, used, e, w, free, y, u)
                     continue
                 now = _score(i0, i1, i2, i3, i4, i5)
                 na, no, ns = y[e, w, 0], y[e, w, 1], y[e, w, 2]
@@ -235,10 +241,7 @@ def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compil
                     if score > best:
                         best, best_j = score, j
                 if best > margin * now + 1e-12:
-                    ys[e, w, best_j, 0] = y[e, w, 0]
-                    ys[e, w, best_j, 1] = y[e, w, 1]
-                    ys[e, w, best_j, 2] = y[e, w, 2]
-                    us[e, w, best_j] = u[e, w]
+                    _store(ys, us, used, e, w, best_j, y, u)
 
 
 @numba.njit(cache=True)
@@ -251,11 +254,7 @@ def _offer_rows_reference(ys, us, used, y, u, offer, margin):  # pragma: no cove
                 continue
             i0, i1, i2, i3, i4, i5, free = _information(ys, used, e, w)
             if free >= 0:
-                ys[e, w, free, 0] = y[e, w, 0]
-                ys[e, w, free, 1] = y[e, w, 1]
-                ys[e, w, free, 2] = y[e, w, 2]
-                us[e, w, free] = u[e, w]
-                used[e, w, free] = True
+                _store(ys, us, used, e, w, free, y, u)
                 continue
             now = _score(i0, i1, i2, i3, i4, i5)
             best, best_j = -np.inf, -1
@@ -273,10 +272,7 @@ def _offer_rows_reference(ys, us, used, y, u, offer, margin):  # pragma: no cove
                 if score > best:
                     best, best_j = score, j
             if best > margin * now + 1e-12:
-                ys[e, w, best_j, 0] = y[e, w, 0]
-                ys[e, w, best_j, 1] = y[e, w, 1]
-                ys[e, w, best_j, 2] = y[e, w, 2]
-                us[e, w, best_j] = u[e, w]
+                _store(ys, us, used, e, w, best_j, y, u)
 
 
 def stack_step(

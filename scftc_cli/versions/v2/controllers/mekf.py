@@ -39,6 +39,7 @@ import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
+from scftc_cli.sim.mrp_fused import compose_row
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import inverse3
 from scftc_cli.sim.sums import einsum3, gemm_entry
@@ -493,12 +494,11 @@ def _norm2(a0, a1, a2):  # pragma: no cover - compiled
 def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
     """``MEKF._innovations`` up to its ``arctan``: per episode and head, the reading on its branch
     nearest the estimate (``law.nearest_branch``), composed with the estimate's inverse
-    (``sim/mrp.compose``, shadow-switched) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
+    (``sim/mrp_fused.compose_row``) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
     ``size`` ``(h, n)``; the same operations in the same order as the numpy functions."""
     for e in numba.prange(heads.shape[0]):
         r0, r1, r2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
         f0, f1, f2 = -r0, -r1, -r2  # the estimate's inverse
-        a2 = _norm2(f0, f1, f2)
         for h in range(heads.shape[1]):
             x0, x1, x2 = heads[e, h, 0], heads[e, h, 1], heads[e, h, 2]
             s2 = _norm2(x0, x1, x2)
@@ -506,20 +506,7 @@ def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
             w0, w1, w2 = -x0 / d, -x1 / d, -x2 / d
             if s2 > 0.0 and _norm2(w0 - r0, w1 - r1, w2 - r2) < _norm2(x0 - r0, x1 - r1, x2 - r2):
                 x0, x1, x2 = w0, w1, w2
-            b2 = _norm2(x0, x1, x2)
-            ab = f0 * x0 + f1 * x1 + f2 * x2
-            c0, c1, c2 = x1 * f2 - x2 * f1, x2 * f0 - x0 * f2, x0 * f1 - x1 * f0  # second x first
-            n0 = (1.0 - a2) * x0 + (1.0 - b2) * f0 - 2.0 * c0
-            n1 = (1.0 - a2) * x1 + (1.0 - b2) * f1 - 2.0 * c1
-            n2 = (1.0 - a2) * x2 + (1.0 - b2) * f2 - 2.0 * c2
-            den = 1.0 + a2 * b2 - 2.0 * ab
-            if den > 1e-12:
-                q0, q1, q2 = n0 / den, n1 / den, n2 / den
-            else:
-                q0, q1, q2 = 0.0, 0.0, 0.0
-            t2 = _norm2(q0, q1, q2)
-            if t2 > 1.0:
-                q0, q1, q2 = -q0 / t2, -q1 / t2, -q2 / t2
+            q0, q1, q2 = compose_row(f0, f1, f2, x0, x1, x2)
             v[h, e, 0], v[h, e, 1], v[h, e, 2] = q0, q1, q2
             size[h, e] = np.sqrt(_norm2(q0, q1, q2))
 
