@@ -27,11 +27,17 @@ def relative(sigma: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(inline="always")
+def norm2_row(a0, a1, a2):  # pragma: no cover - compiled
+    """``sim/mrp.norm2`` of one row, in its order; for numba kernels."""
+    return a0 * a0 + a1 * a1 + a2 * a2
+
+
+@numba.njit(inline="always")
 def compose_row(f0, f1, f2, s0, s1, s2):  # pragma: no cover - compiled
     """``sim/mrp.compose`` of one row: the rotation ``f`` followed by ``s`` (Schaub & Junkins eq.
     3.154, then the shadow set), the same operations in the same order; for numba kernels."""
-    a2 = f0 * f0 + f1 * f1 + f2 * f2
-    b2 = s0 * s0 + s1 * s1 + s2 * s2
+    a2 = norm2_row(f0, f1, f2)
+    b2 = norm2_row(s0, s1, s2)
     ab = f0 * s0 + f1 * s1 + f2 * s2
     c0, c1, c2 = s1 * f2 - s2 * f1, s2 * f0 - s0 * f2, s0 * f1 - s1 * f0
     n0 = (1.0 - a2) * s0 + (1.0 - b2) * f0 - 2.0 * c0
@@ -42,7 +48,7 @@ def compose_row(f0, f1, f2, s0, s1, s2):  # pragma: no cover - compiled
         x0, x1, x2 = n0 / den, n1 / den, n2 / den
     else:  # two half turns about one axis: the identity
         x0, x1, x2 = 0.0, 0.0, 0.0
-    q2 = x0 * x0 + x1 * x1 + x2 * x2
+    q2 = norm2_row(x0, x1, x2)
     if q2 > 1.0:
         x0, x1, x2 = -x0 / q2, -x1 / q2, -x2 / q2
     return x0, x1, x2

@@ -192,9 +192,9 @@ def _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, out):  #
         r0, r1, r2 = s0, s1, s2
     v0, v1, v2 = valid[e, 0] > 0.5, valid[e, 1] > 0.5, valid[e, 2] > 0.5
     # each head on the MRP branch nearest the propagated estimate
-    a00, a01, a02 = _branch(heads[e, 0], heads[e, 1], heads[e, 2], r0, r1, r2)
-    a10, a11, a12 = _branch(heads[e, 3], heads[e, 4], heads[e, 5], r0, r1, r2)
-    a20, a21, a22 = _branch(heads[e, 6], heads[e, 7], heads[e, 8], r0, r1, r2)
+    a00, a01, a02 = nearest_branch_row(heads[e, 0], heads[e, 1], heads[e, 2], r0, r1, r2)
+    a10, a11, a12 = nearest_branch_row(heads[e, 3], heads[e, 4], heads[e, 5], r0, r1, r2)
+    a20, a21, a22 = nearest_branch_row(heads[e, 6], heads[e, 7], heads[e, 8], r0, r1, r2)
     count = (1 if v0 else 0) + (1 if v1 else 0) + (1 if v2 else 0)
     out[e, 0] = _vote(a00, a10, a20, v0, v1, v2, count, r0)
     out[e, 1] = _vote(a01, a11, a21, v0, v1, v2, count, r1)
@@ -202,8 +202,9 @@ def _fuse_episode(e, sigma, heads, valid, gyro, last_gyro, started, dt, out):  #
 
 
 @numba.njit(inline="always")
-def _branch(h0, h1, h2, r0, r1, r2):  # pragma: no cover - compiled
-    """``nearest_branch`` of one head ``h`` to the estimate ``r``."""
+def nearest_branch_row(h0, h1, h2, r0, r1, r2):  # pragma: no cover - compiled
+    """``nearest_branch`` of one head ``h`` to the estimate ``r`` (the fuser's and the MEKF's
+    compiled head tests)."""
     m2 = h0 * h0 + h1 * h1 + h2 * h2
     d = m2 if m2 > 0.0 else 1.0
     w0, w1, w2 = -h0 / d, -h1 / d, -h2 / d

@@ -39,11 +39,11 @@ import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
-from scftc_cli.sim.mrp_fused import compose_row
+from scftc_cli.sim.mrp_fused import compose_row, norm2_row
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import inverse3
 from scftc_cli.sim.sums import einsum3, gemm_entry
-from scftc_cli.versions.v2.controllers.law import nearest_branch, rotation_mrp, vote
+from scftc_cli.versions.v2.controllers.law import nearest_branch, nearest_branch_row, rotation_mrp, vote
 
 
 @dataclass(frozen=True)
@@ -435,6 +435,17 @@ def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no 
                 out[e, i, j] = 0.5 * (full[i, j] + full[j, i])
 
 
+@numba.njit(inline="always")
+def _innovation_covariance(p, r):  # pragma: no cover - compiled
+    """``P[:3, :3] + r I`` of one episode's covariance ``p`` ``(6, 6)``, as numpy adds ``r * eye``
+    (``+ 0.0`` off the diagonal), into a new 3x3 array."""
+    S = np.empty((3, 3))
+    for u in range(3):
+        for v in range(3):
+            S[u, v] = p[u, v] + r * (1.0 if u == v else 0.0)
+    return S
+
+
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no cover - compiled
     """``MEKF._update_reference`` for every episode: the new covariance into ``out_p`` (Joseph
@@ -445,10 +456,7 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
         p = P[row]
         live = count[row] > 0
         r = r_var / max(count[row], 1)
-        S = np.empty((3, 3))
-        for u in range(3):
-            for v in range(3):
-                S[u, v] = p[u, v] + r * (1.0 if u == v else 0.0)
+        S = _innovation_covariance(p, r)
         s_inv = np.empty((3, 3))
         inverse3(S, s_inv)
         K = np.empty((6, 3))
@@ -484,31 +492,19 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
             out_z[row, u] = nu_mean[row, u] / np.sqrt(S[u, u]) if live else 0.0
 
 
-@numba.njit(inline="always")
-def _norm2(a0, a1, a2):  # pragma: no cover - compiled
-    """``sim/mrp.norm2`` of one row (its fixed order)."""
-    return a0 * a0 + a1 * a1 + a2 * a2
-
-
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
     """``MEKF._innovations`` up to its ``arctan``: per episode and head, the reading on its branch
-    nearest the estimate (``law.nearest_branch``), composed with the estimate's inverse
+    nearest the estimate (``law.nearest_branch_row``), composed with the estimate's inverse
     (``sim/mrp_fused.compose_row``) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
     ``size`` ``(h, n)``; the same operations in the same order as the numpy functions."""
     for e in numba.prange(heads.shape[0]):
         r0, r1, r2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
-        f0, f1, f2 = -r0, -r1, -r2  # the estimate's inverse
         for h in range(heads.shape[1]):
-            x0, x1, x2 = heads[e, h, 0], heads[e, h, 1], heads[e, h, 2]
-            s2 = _norm2(x0, x1, x2)
-            d = s2 if s2 > 0.0 else 1.0
-            w0, w1, w2 = -x0 / d, -x1 / d, -x2 / d
-            if s2 > 0.0 and _norm2(w0 - r0, w1 - r1, w2 - r2) < _norm2(x0 - r0, x1 - r1, x2 - r2):
-                x0, x1, x2 = w0, w1, w2
-            q0, q1, q2 = compose_row(f0, f1, f2, x0, x1, x2)
+            x0, x1, x2 = nearest_branch_row(heads[e, h, 0], heads[e, h, 1], heads[e, h, 2], r0, r1, r2)
+            q0, q1, q2 = compose_row(-r0, -r1, -r2, x0, x1, x2)  # after the estimate's inverse
             v[h, e, 0], v[h, e, 1], v[h, e, 2] = q0, q1, q2
-            size[h, e] = np.sqrt(_norm2(q0, q1, q2))
+            size[h, e] = np.sqrt(norm2_row(q0, q1, q2))
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
@@ -518,24 +514,21 @@ def _head_test_rows(
     """``MEKF._head_tests_reference`` from ``_branch_rows``' ``v`` and ``size`` and numpy's
     ``arctan(size)`` (``turned``): the rotation vectors ``nu``, their ``nis`` against ``S = P_tt +
     r I`` (the three-operand einsum's order: every product ``nu_i S^-1_ij nu_j`` added in turn, i
-    then j, to +0.0) and the outliers (``np.min``'s NaN kept)."""
+    then j, to +0.0: einsum adds them from the first product and then to +0.0, which differs only
+    in the sign of a zero sum, and that ends +0.0 either way) and the outliers (``np.min``'s NaN kept)."""
     heads = v.shape[0]
     for e in numba.prange(v.shape[1]):
-        m, s_inv = np.empty((3, 3)), np.empty((3, 3))
-        for i in range(3):
-            for j in range(3):
-                m[i, j] = P[e, i, j] + r_var * (1.0 if i == j else 0.0)
-        inverse3(m, s_inv)
+        s_inv = np.empty((3, 3))
+        inverse3(_innovation_covariance(P[e], r_var), s_inv)
         for h in range(heads):
             ratio = 4.0 * turned[h, e] / size[h, e] if size[h, e] > 1e-12 else 4.0
             for i in range(3):
                 nu[e, h, i] = ratio * v[h, e, i]
-            total = nu[e, h, 0] * s_inv[0, 0] * nu[e, h, 0]
+            total = 0.0
             for i in range(3):
                 for j in range(3):
-                    if i > 0 or j > 0:
-                        total = total + nu[e, h, i] * s_inv[i, j] * nu[e, h, j]
-            nis[e, h] = 0.0 + total
+                    total = total + nu[e, h, i] * s_inv[i, j] * nu[e, h, j]
+            nis[e, h] = total
         keep = False
         for h in range(heads):
             closest = np.inf
@@ -547,7 +540,7 @@ def _head_test_rows(
                         nu[e, h, 1] - nu[e, g, 1],
                         nu[e, h, 2] - nu[e, g, 2],
                     )
-                    pair = _norm2(d0, d1, d2) / two_r_var
+                    pair = norm2_row(d0, d1, d2) / two_r_var
                 if closest != closest or pair != pair:
                     closest = np.nan
                 elif pair < closest:
