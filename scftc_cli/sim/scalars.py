@@ -150,10 +150,11 @@ def _lapack_inverse_rows(m, out, done):  # pragma: no cover - compiled
 def linalg_inv(matrices: np.ndarray) -> np.ndarray:
     """``np.linalg.inv`` of a stack of 3x3 matrices ``(n, 3, 3)``, bit for bit and without LAPACK's
     per-matrix call: ``lapack_inverse3`` on every row, ``np.linalg.inv`` itself on the rows it
-    leaves (so a singular matrix raises as numpy's does). Any other shape is numpy's."""
-    m = as_f64(matrices)
-    if m.ndim != 3 or m.shape[1:] != (3, 3):
-        return np.linalg.inv(matrices)
+    leaves (so a singular matrix raises as numpy's does). Any other shape or dtype is numpy's."""
+    m = np.asarray(matrices)
+    if m.dtype != np.float64 or m.ndim != 3 or m.shape[1:] != (3, 3):
+        return np.linalg.inv(m)
+    m = as_f64(m)
     out = np.empty_like(m)
     done = np.empty(len(m), dtype=np.bool_)
     run_rows(_lapack_inverse_rows, m, out, done, parallel=len(m) >= PARALLEL_MIN_BATCH)

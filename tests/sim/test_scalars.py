@@ -43,8 +43,8 @@ def test_inv_is_numpys_inverse_to_the_bit(seed: int) -> None:
         np.testing.assert_array_equal(_bits(linalg_inv(stack)), _bits(expected), err_msg=name)
 
 
-def test_every_pivot_order_is_met() -> None:
-    """Rows permuted so that each of the six pivot orders occurs."""
+def test_every_first_pivot_is_met() -> None:
+    """Each row in turn holds the first pivot (the second falls either way across the random rest)."""
     rng = np.random.default_rng(2)
     base = rng.normal(size=(20_000, 3, 3))
     for order in ([0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]):
@@ -76,3 +76,6 @@ def test_other_shapes_are_numpys() -> None:
     for shape in ((3, 3), (5, 4, 4), (2, 2, 3, 3)):
         m = rng.normal(size=shape)
         np.testing.assert_array_equal(_bits(linalg_inv(m)), _bits(np.linalg.inv(m)))
+    single = rng.normal(size=(5, 3, 3)).astype(np.float32)
+    assert linalg_inv(single).dtype == np.float32
+    np.testing.assert_array_equal(linalg_inv(single), np.linalg.inv(single))
