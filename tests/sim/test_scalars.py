@@ -1,6 +1,6 @@
 """``scalars.linalg_inv`` is ``np.linalg.inv`` on stacks of 3x3 matrices, bit for bit (under the pinned
-kernels), on matrices whose entries span many decades, with every pivot order, and where LAPACK
-itself must answer (singular, subnormal pivots, overflow, NaN and inf)."""
+kernels), on matrices whose entries span many decades, with each row as the first pivot, and where
+LAPACK itself must answer (singular, subnormal pivots, overflow, NaN and inf)."""
 
 from __future__ import annotations
 
