@@ -8,10 +8,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim.scalars import SMALLEST_PIVOT, linalg_inv
-
-
-def _bits(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a).view(np.int64)
+from tests.bits import bits
 
 
 def _stacks(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
@@ -40,7 +37,7 @@ def test_inv_is_numpys_inverse_to_the_bit(seed: int) -> None:
         stack = stack[regular]
         with np.errstate(all="ignore"):
             expected = np.linalg.inv(stack)
-        np.testing.assert_array_equal(_bits(linalg_inv(stack)), _bits(expected), err_msg=name)
+        np.testing.assert_array_equal(bits(linalg_inv(stack)), bits(expected), err_msg=name)
 
 
 def test_every_first_pivot_is_met() -> None:
@@ -51,7 +48,7 @@ def test_every_first_pivot_is_met() -> None:
         stack = base.copy()
         stack[:, order, 0] = np.array([10.0, 1.0, 0.1])[None, :] * np.sign(stack[:, order, 0])
         expected = np.linalg.inv(stack)
-        np.testing.assert_array_equal(_bits(linalg_inv(stack)), _bits(expected), err_msg=str(order))
+        np.testing.assert_array_equal(bits(linalg_inv(stack)), bits(expected), err_msg=str(order))
 
 
 def test_lapack_answers_where_the_compiled_form_declines() -> None:
@@ -65,7 +62,7 @@ def test_lapack_answers_where_the_compiled_form_declines() -> None:
     with np.errstate(all="ignore"):
         expected = np.linalg.inv(stack)
         got = linalg_inv(stack)
-    np.testing.assert_array_equal(_bits(got), _bits(expected))
+    np.testing.assert_array_equal(bits(got), bits(expected))
     singular = np.ones((2, 3, 3))
     with pytest.raises(np.linalg.LinAlgError):
         linalg_inv(singular)
@@ -75,7 +72,7 @@ def test_other_shapes_are_numpys() -> None:
     rng = np.random.default_rng(4)
     for shape in ((3, 3), (5, 4, 4), (2, 2, 3, 3)):
         m = rng.normal(size=shape)
-        np.testing.assert_array_equal(_bits(linalg_inv(m)), _bits(np.linalg.inv(m)))
+        np.testing.assert_array_equal(bits(linalg_inv(m)), bits(np.linalg.inv(m)))
     single = rng.normal(size=(5, 3, 3)).astype(np.float32)
     assert linalg_inv(single).dtype == np.float32
     np.testing.assert_array_equal(linalg_inv(single), np.linalg.inv(single))

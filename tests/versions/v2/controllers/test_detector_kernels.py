@@ -20,6 +20,7 @@ from scftc_cli.versions.v2.controllers.detection import (
 )
 from scftc_cli.versions.v2.controllers.fdir import load_fdir_params
 from scftc_cli.versions.v2.sim.testbed import public_context
+from tests.bits import bits
 
 CONTEXT = public_context(1)
 SENSORS, WHEELS, DT = CONTEXT.sensors, CONTEXT.wheels, CONTEXT.dt_s
@@ -32,11 +33,6 @@ class NumpyMonitor(WheelMonitor):
 
     observe = WheelMonitor.observe_reference
     solver = staticmethod(solved_reference)
-
-
-def _bits(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a)
-    return a.view(np.int64) if a.dtype == np.float64 else a
 
 
 STATE = ("theta", "cov", "A", "y", "prior", "prior_weight", "cusum", "since_zero", "isolated", "dead")
@@ -80,9 +76,9 @@ def _fly(n: int, wheels, steps: int = 140, nan_at: int | None = None) -> tuple[W
         reference.observe(tach, gyro)
         for name in STATE + BUFFERS:
             got, want = getattr(compiled, name), getattr(reference, name)
-            assert np.array_equal(_bits(got), _bits(want)), f"{name} differs at step {k}"
+            assert np.array_equal(bits(got), bits(want)), f"{name} differs at step {k}"
         for log in ("alarm_log", "statistic_log", "change_log"):
-            assert np.array_equal(_bits(getattr(compiled, log)[-1]), _bits(getattr(reference, log)[-1])), log
+            assert np.array_equal(bits(getattr(compiled, log)[-1]), bits(getattr(reference, log)[-1])), log
         alarms += bool(compiled.alarm_log[-1].any())
     return compiled, alarms
 
@@ -112,7 +108,7 @@ def _solve_inputs(rng: np.random.Generator, shape: tuple[int, ...]) -> tuple[np.
 def test_the_compiled_solve_and_clamp_give_the_bits_of_numpy(shape: tuple[int, int]) -> None:
     A, y, weight, prior = _solve_inputs(np.random.default_rng(sum(shape)), shape)
     for got, want in zip(solved(A, y, weight, prior), solved_reference(A, y, weight, prior), strict=True):
-        np.testing.assert_array_equal(_bits(got), _bits(want))
+        np.testing.assert_array_equal(bits(got), bits(want))
 
 
 def test_the_clamp_moves_every_row_when_one_moves_as_numpy_does() -> None:
@@ -134,7 +130,7 @@ def test_the_clamp_moves_every_row_when_one_moves_as_numpy_does() -> None:
         with np.errstate(invalid="ignore"):  # inf * 0.0, as intended
             want_theta, want_cov = clamp(t.copy(), c.copy())
         clamped(t, c)
-        np.testing.assert_array_equal(_bits(t), _bits(want_theta))
-        np.testing.assert_array_equal(_bits(c), _bits(want_cov))
+        np.testing.assert_array_equal(bits(t), bits(want_theta))
+        np.testing.assert_array_equal(bits(c), bits(want_cov))
         if pinned is not None and pinned[1] != 1:
             assert not np.signbit(t[3]).all()  # the -0.0 row was moved by 0.0 too

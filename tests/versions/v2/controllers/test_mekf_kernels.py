@@ -14,6 +14,7 @@ from scftc_cli.versions.v2.controllers.fdir import load_fdir_params, pseudo_inve
 from scftc_cli.versions.v2.controllers.law import pseudo_inverse_reference
 from scftc_cli.versions.v2.controllers.mekf import MEKF, inv3, inv3_reference
 from scftc_cli.versions.v2.sim.testbed import public_context
+from tests.bits import bits
 
 CONTEXT = public_context(1)
 SENSORS, DT = CONTEXT.sensors, CONTEXT.dt_s
@@ -26,10 +27,6 @@ class NumpyMEKF(MEKF):
     _propagate = MEKF._propagate_reference
     _update = MEKF._update_reference
     _head_tests = MEKF._head_tests_reference
-
-
-def _bits(a: np.ndarray) -> np.ndarray:
-    return np.asarray(a, dtype=np.float64).view(np.int64)
 
 
 @pytest.mark.parametrize("n", [1, 13, 5_003])  # one episode, a few, past the parallel threshold
@@ -55,9 +52,9 @@ def test_the_compiled_filter_gives_the_bits_of_its_numpy_definition(n: int) -> N
         got = compiled.step(heads, valid, gyro)
         want = reference.step(heads, valid, gyro)
         for a, b in zip(got, want, strict=True):
-            np.testing.assert_array_equal(_bits(a), _bits(b))
-        np.testing.assert_array_equal(_bits(compiled.P), _bits(reference.P))
-        np.testing.assert_array_equal(_bits(compiled.bias), _bits(reference.bias))
+            np.testing.assert_array_equal(bits(a), bits(b))
+        np.testing.assert_array_equal(bits(compiled.P), bits(reference.P))
+        np.testing.assert_array_equal(bits(compiled.bias), bits(reference.bias))
         np.testing.assert_array_equal(compiled.used, reference.used)
         updated_and_not |= bool(compiled.used.any(axis=1).any() and not compiled.used.any(axis=1).all())
     assert updated_and_not or n == 1  # rows with and without an update side by side
@@ -89,9 +86,7 @@ def test_the_compiled_head_tests_give_the_bits_of_their_numpy_definition(n: int)
         want = MEKF._head_tests_reference(compiled, heads, candidate)
     for a, b in zip(got, want, strict=True):
         assert a.shape == b.shape
-        np.testing.assert_array_equal(
-            _bits(a) if a.dtype == np.float64 else a, _bits(b) if b.dtype == np.float64 else b
-        )
+        np.testing.assert_array_equal(bits(a), bits(b))
     assert n < 13 or want[2].any()  # outliers found
 
 
@@ -110,7 +105,7 @@ def test_the_compiled_adjugate_inverse_gives_the_bits_of_its_numpy_definition(sh
     with np.errstate(divide="ignore", invalid="ignore"):
         got, want = inv3(m), inv3_reference(m)
     assert got.shape == want.shape == m.shape
-    np.testing.assert_array_equal(_bits(got), _bits(want))
+    np.testing.assert_array_equal(bits(got), bits(want))
 
 
 @pytest.mark.parametrize("n", [1, 9, 5_003])
@@ -126,4 +121,4 @@ def test_fdirs_allocation_gives_the_bits_of_its_numpy_definition(n: int) -> None
     with np.errstate(divide="ignore", invalid="ignore"):  # a row with every wheel dead: NaN, both
         got = pseudo_inverse3(matrix)
         want = pseudo_inverse_reference(matrix, 1e-12, inv3_reference, floor_zero_trace=False)
-    np.testing.assert_array_equal(_bits(got), _bits(want))
+    np.testing.assert_array_equal(bits(got), bits(want))

@@ -21,10 +21,7 @@ from scftc_cli.versions.v2.controllers.student import (
     wheel_features_reference,
 )
 from scftc_cli.versions.v2.sim.testbed import public_context
-
-
-def _bits(a: np.ndarray) -> np.ndarray:
-    return np.asarray(a, dtype=np.float64).view(np.int64)
+from tests.bits import bits
 
 
 def _awkward(rng: np.random.Generator, shape: tuple[int, int], scale: float) -> np.ndarray:
@@ -49,7 +46,7 @@ def test_the_compiled_features_give_the_bits_of_their_numpy_definition(n: int) -
         compiled = wheel_features(*floats, after_alarm, *flags)
         reference = wheel_features_reference(*floats, after_alarm, *flags)
         assert compiled.shape == (n * 4, N_FEATURES)
-        np.testing.assert_array_equal(_bits(compiled), _bits(reference))
+        np.testing.assert_array_equal(bits(compiled), bits(reference))
 
 
 def test_the_features_of_a_sign_change_under_the_clip() -> None:
@@ -83,11 +80,11 @@ def test_the_compiled_latch_gives_the_bits_of_its_numpy_definition(n: int) -> No
             compiled.restart(restart)
             reference.restart(restart)
         got, want = compiled.update(raw, excitation), reference.update_reference(raw, excitation)
-        np.testing.assert_array_equal(_bits(got), _bits(want))
+        np.testing.assert_array_equal(bits(got), bits(want))
         np.testing.assert_array_equal(compiled.latched, reference.latched)
         np.testing.assert_array_equal(compiled.count, reference.count)
-        np.testing.assert_array_equal(_bits(compiled.frozen), _bits(reference.frozen))
-        np.testing.assert_array_equal(_bits(compiled.history), _bits(reference.history))
+        np.testing.assert_array_equal(bits(compiled.frozen), bits(reference.frozen))
+        np.testing.assert_array_equal(bits(compiled.history), bits(reference.history))
         mixed |= bool(compiled.latched.any()) and not compiled.latched.all()
     assert mixed  # both branches were taken
 
@@ -119,7 +116,7 @@ def test_the_compiled_friction_gives_the_bits_of_its_numpy_definition(coulomb: o
     with np.errstate(invalid="ignore"):
         got, want = friction_nm(speed, levels, wheels), friction_nm_reference(speed, levels, wheels)
     assert got.shape == want.shape == (n, 4)
-    np.testing.assert_array_equal(_bits(got), _bits(want))
+    np.testing.assert_array_equal(bits(got), bits(want))
 
 
 @pytest.mark.parametrize("wheels", [3, 4, 5])
@@ -138,5 +135,5 @@ def test_the_compiled_allocation_gives_the_bits_of_its_numpy_definition(wheels: 
     matrix = axes.T[None, :, :] * gain[:, None, :]
     got, want = pseudo_inverse(matrix), pseudo_inverse_reference(matrix)
     assert got.shape == want.shape == (n, wheels, 3)
-    np.testing.assert_array_equal(_bits(got), _bits(want))
+    np.testing.assert_array_equal(bits(got), bits(want))
     assert np.isfinite(got).all()
