@@ -109,23 +109,10 @@ def lapack_inverse3(m, a, out):  # pragma: no cover - compiled
         return False
     d0, d1, d2 = 1.0 / a[0, 0], 1.0 / a[1, 1], 1.0 / a[2, 2]  # dtrsm's packed reciprocal diagonal
     for column in range(3):
-        # column ``column`` of P I: row r of I moved by the swaps (0 <-> p, then 1 <-> q)
-        b0, b1, b2 = 0.0, 0.0, 0.0
-        row = column  # the row of P I that holds this column's one
-        if row == 0:
-            row = p
-        elif row == p:
-            row = 0
-        if row == 1:
-            row = q
-        elif row == q:
-            row = 1
-        if row == 0:
-            b0 = 1.0
-        elif row == 1:
-            b1 = 1.0
-        else:
-            b2 = 1.0
+        # column ``column`` of P I (I's rows swapped 0 <-> p, then 1 <-> q): its one moves with them
+        one = p if column == 0 else (0 if column == p else column)
+        one = q if one == 1 else (1 if one == q else one)
+        b0, b1, b2 = 1.0 if one == 0 else 0.0, 1.0 if one == 1 else 0.0, 1.0 if one == 2 else 0.0
         y0 = b0
         y1 = b1 - y0 * a[1, 0]
         y2 = b2 - fma(a[2, 1], y1, fma(a[2, 0], y0, 0.0))  # type: ignore[call-arg]
@@ -143,8 +130,7 @@ def lapack_inverse3(m, a, out):  # pragma: no cover - compiled
 @numba.njit(cache=True, parallel=True)
 def _lapack_inverse_rows(m, out, done):  # pragma: no cover - compiled
     for e in numba.prange(m.shape[0]):
-        scratch = np.empty((3, 3))
-        done[e] = lapack_inverse3(m[e], scratch, out[e])
+        done[e] = lapack_inverse3(m[e], np.empty((3, 3)), out[e])
 
 
 def linalg_inv(matrices: np.ndarray) -> np.ndarray:
