@@ -12,7 +12,7 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-PIP := $(BIN)/pip install --quiet --disable-pip-version-check
+PIP := $(BIN)/pip install --quiet --disable-pip-version-check --constraint constraints.txt
 SOURCES := scftc_cli tests benchmarks examples
 
 # command:Debian package pairs the test suite needs (sandbox, seccomp, browser test).
@@ -31,13 +31,14 @@ $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 
 # The package and its run-time dependencies: enough to evaluate every controller and reproduce the study.
-$(VENV)/.installed-base: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.installed-base: pyproject.toml constraints.txt | $(VENV)/bin/python
 	$(PIP) -e .
 	touch $@
 
+# Every install takes the numerical stack's pinned versions (constraints.txt).
 # Everything: torch==2.13.0 first (a looser torch requirement could pull a multi-GB CUDA build),
 # then training, RL, Basilisk, Dask and the developer tools.
-$(VENV)/.installed-dev: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.installed-dev: pyproject.toml constraints.txt | $(VENV)/bin/python
 	$(PIP) torch==2.13.0
 	$(PIP) -e '.[dev,learn,rl,basilisk,dask]'
 	touch $(VENV)/.installed-base $@
