@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from scftc_cli.sim.elementary import arccos, arctan, arctan2, sine, tangent
+
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product ``(..., 3) -> (...)`` summed in a fixed order (the fast kernel's)."""
@@ -53,8 +55,10 @@ def compose(first: np.ndarray, second: np.ndarray) -> np.ndarray:
 
 def angle_deg_from_norm2(sigma_norm2: np.ndarray) -> np.ndarray:
     """Principal angle ``4 atan(|sigma|)`` in degrees from ``|sigma|^2``; monotone, so the max
-    (min) of the angle over steps is the angle of the max (min) of ``|sigma|^2``."""
-    return np.degrees(4.0 * np.arctan(np.sqrt(sigma_norm2)))
+    (min) of the angle over steps is the angle of the max (min) of ``|sigma|^2``. The arctangent
+    is the project's correctly rounded one (``elementary.arctan``): every gate and reported error
+    goes through it, so they are the same on every machine."""
+    return np.degrees(4.0 * arctan(np.sqrt(sigma_norm2)))
 
 
 def largest_norm2_within(angle_deg: float) -> float:
@@ -81,7 +85,7 @@ def principal_angle_deg(sigma: np.ndarray) -> np.ndarray:
 
 def from_axis_angle(axis: np.ndarray, angle_rad: np.ndarray | float) -> np.ndarray:
     """MRP of a rotation by ``angle_rad`` about unit ``axis`` ``(n, 3)``: ``tan(angle/4) axis``."""
-    return np.tan(np.asarray(angle_rad) / 4.0)[..., None] * axis
+    return tangent(np.asarray(angle_rad) / 4.0)[..., None] * axis
 
 
 def to_dcm(sigma: np.ndarray) -> np.ndarray:
@@ -102,7 +106,7 @@ TWO_PI = 2.0 * np.pi
 def rotvec(sigma: np.ndarray) -> np.ndarray:
     """Rotation vector ``4 atan(|s|) s/|s|`` ``(m, 3)`` of MRPs ``(m, 3)`` (``4 s`` near zero)."""
     s = np.sqrt(norm2(sigma))[:, None]
-    return sigma * np.where(s > 1e-12, 4.0 * np.arctan(s) / np.maximum(s, 1e-300), 4.0)
+    return sigma * np.where(s > 1e-12, 4.0 * arctan(s) / np.maximum(s, 1e-300), 4.0)
 
 
 def relative(sigma_body: np.ndarray, sigma_ref: np.ndarray) -> np.ndarray:
@@ -113,7 +117,7 @@ def relative(sigma_body: np.ndarray, sigma_ref: np.ndarray) -> np.ndarray:
 def axis_mrp(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """MRP ``(m, 3)`` of a rotation by ``angle`` ``(m,)`` about body axis index ``axis`` ``(m,)``."""
     out = np.zeros((len(axis), 3))
-    out[np.arange(len(axis)), axis] = np.tan(angle / 4.0)
+    out[np.arange(len(axis)), axis] = tangent(angle / 4.0)
     return out
 
 
@@ -121,7 +125,7 @@ def twist_swing(sigma_rel: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np
     """Split ``C_BW = C_delta M_axis(psi)``: twist angle ``psi`` ``(m,)`` in ``[-pi, pi]`` about body
     axis ``axis`` and the swing's rotation vector ``delta`` ``(m, 3)`` (no component on ``axis``)."""
     rows = np.arange(len(axis))
-    psi = 2.0 * np.arctan2(2.0 * sigma_rel[rows, axis], 1.0 - norm2(sigma_rel))
+    psi = 2.0 * arctan2(2.0 * sigma_rel[rows, axis], 1.0 - norm2(sigma_rel))
     swing = compose(axis_mrp(axis, -psi), sigma_rel)
     return psi, rotvec(swing)
 
@@ -138,12 +142,12 @@ def euler_pqp(dcm: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     d = 3 - p - q
     s = levi_civita(p, q)
     cos_b = np.clip(dcm[rows, p, p], -1.0, 1.0)
-    b = np.arccos(cos_b)
-    a = np.arctan2(dcm[rows, p, q], -s * dcm[rows, p, d])
-    c = np.arctan2(dcm[rows, q, p], s * dcm[rows, d, p])
+    b = arccos(cos_b)
+    a = arctan2(dcm[rows, p, q], -s * dcm[rows, p, d])
+    c = arctan2(dcm[rows, q, p], s * dcm[rows, d, p])
     # gimbal lock (b ~ 0 or pi): only a +- c is defined; put it all in c
-    lock = np.abs(np.sin(b)) < 1e-9
-    c_lock = np.arctan2(s * np.where(cos_b > 0, 1.0, -1.0) * dcm[rows, q, d], dcm[rows, q, q])
+    lock = np.abs(sine(b)) < 1e-9
+    c_lock = arctan2(s * np.where(cos_b > 0, 1.0, -1.0) * dcm[rows, q, d], dcm[rows, q, q])
     a = np.where(lock, 0.0, a)
     c = np.where(lock, c_lock, c)
     first = np.stack([a, b, c], axis=1)

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from scftc_cli.sim.elementary import fma
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
-from scftc_cli.sim.sums import fma
 
 SMALLEST_PIVOT = float(np.finfo(np.float64).tiny)
 """OpenBLAS's ``dgetf2`` divides by a pivot only from this magnitude on (``DBL_MIN``); below it, it

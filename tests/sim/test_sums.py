@@ -7,7 +7,8 @@ import numba
 import numpy as np
 import pytest
 
-from scftc_cli.sim.sums import einsum3, fma, gemm3, gemm4
+from scftc_cli.sim.elementary import fma
+from scftc_cli.sim.sums import einsum3, gemm3, gemm4
 
 
 @numba.njit(cache=True)

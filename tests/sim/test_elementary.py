@@ -1,0 +1,105 @@
+"""The project's own elementary functions (``scftc_cli.sim.elementary``) are correctly rounded:
+checked against mpmath at 200 bits on arguments of every magnitude, the edges of their reductions and
+the special values. Correct rounding is their quality; what makes a scored number the same on every
+machine is that they use nothing but IEEE 754's correctly rounded operations and ``fma``."""
+
+from __future__ import annotations
+
+import math
+
+import mpmath
+import numpy as np
+import pytest
+
+from scftc_cli.sim.elementary import arccos, arctan, arctan2, cosine, sine, tangent
+
+mpmath.mp.prec = 200
+RNG = np.random.default_rng(20261128)
+
+
+def _edges(values: list[float]) -> np.ndarray:
+    edges = np.array(values)
+    return np.concatenate([edges, np.nextafter(edges, -np.inf), np.nextafter(edges, np.inf)])
+
+
+def _wrong(got: np.ndarray, reference, *args: np.ndarray) -> list[tuple[float, ...]]:
+    out = []
+    for i in range(got.size):
+        point = tuple(float(a[i]) for a in args)
+        if got[i] != float(reference(*(mpmath.mpf(p) for p in point))):
+            out.append(point)
+    return out
+
+
+ATAN_ARGS = np.concatenate(
+    [
+        RNG.random(3000),  # the gates' range: |sigma| up to 1
+        np.exp(RNG.uniform(-40.0, 40.0, 2000)),
+        1.0 + RNG.normal(0.0, 1e-6, 300),  # either side of the inversion
+        0.03125 * (1.0 + RNG.normal(0.0, 1e-9, 300)),  # either side of the last halving
+        _edges([0.03125, 1.0, 2.0**-26, 2.0**26, 1e-300, 1e300]),
+    ]
+)
+TRIG_ARGS = np.concatenate(
+    [
+        RNG.uniform(-8.0, 8.0, 3000),
+        np.exp(RNG.uniform(-30.0, 13.0, 1000)) * RNG.choice([-1.0, 1.0], 1000),
+        np.arange(-20, 21) * (math.pi / 4.0),  # near the reduction's quadrant boundaries
+        _edges([1e-300, 2.0**-27, math.pi / 2.0, math.pi, 2.0 * math.pi]),
+    ]
+)
+
+
+@pytest.mark.parametrize(
+    ("function", "reference", "args"),
+    [
+        (arctan, mpmath.atan, ATAN_ARGS),
+        (sine, mpmath.sin, TRIG_ARGS),
+        (cosine, mpmath.cos, TRIG_ARGS),
+        (tangent, mpmath.tan, TRIG_ARGS),
+        (arccos, mpmath.acos, np.concatenate([RNG.uniform(-1.0, 1.0, 3000), _edges([-0.5, 0.0, 0.5])])),
+    ],
+    ids=["atan", "sin", "cos", "tan", "acos"],
+)
+def test_unary_functions_are_correctly_rounded(function, reference, args):
+    wrong = _wrong(function(args), reference, args)
+    assert not wrong, f"{len(wrong)} of {args.size} arguments not correctly rounded, e.g. {wrong[:5]}"
+
+
+def test_atan2_is_correctly_rounded_in_every_quadrant():
+    y = np.concatenate([RNG.uniform(-3.0, 3.0, 2000), np.exp(RNG.uniform(-20.0, 20.0, 500))])
+    x = np.concatenate([RNG.uniform(-3.0, 3.0, 2000), -np.exp(RNG.uniform(-20.0, 20.0, 500))])
+    wrong = _wrong(arctan2(y, x), mpmath.atan2, y, x)
+    assert not wrong, f"{len(wrong)} of {y.size} points not correctly rounded, e.g. {wrong[:5]}"
+
+
+def test_special_values_are_c99s():
+    zero, inf, nan = 0.0, math.inf, math.nan
+    ys = [0.0, -0.0, 0.0, -0.0, 1.0, -1.0, inf, -inf, inf, 1.0, 1.0, -1.0, nan, 1.0]
+    xs = [0.0, 0.0, -0.0, -0.0, 0.0, -0.0, inf, -inf, 1.0, inf, -inf, inf, 1.0, nan]
+    got = arctan2(np.array(ys), np.array(xs))
+    for y, x, g in zip(ys, xs, got, strict=True):
+        want = math.atan2(y, x)
+        assert (math.isnan(g) and math.isnan(want)) or (
+            g == want and math.copysign(1, g) == math.copysign(1, want)
+        )
+    atan = arctan(np.array([zero, -zero, inf, -inf, nan]))
+    assert math.copysign(1.0, atan[0]) == 1.0 and math.copysign(1.0, atan[1]) == -1.0
+    assert atan[2] == math.atan(inf) and atan[3] == -atan[2] and math.isnan(atan[4])
+    assert math.copysign(1.0, sine(np.array([-0.0]))[0]) == -1.0 and tangent(np.array([0.0]))[0] == 0.0
+    assert arccos(np.array([1.0]))[0] == 0.0 and arccos(np.array([-1.0]))[0] == math.acos(-1.0)
+    assert np.isnan(arccos(np.array([1.5, -1.5, nan]))).all()
+    assert np.isnan(sine(np.array([inf, 2.0**21])))[0] and np.isnan(cosine(np.array([nan])))[0]
+
+
+def test_atan_is_odd():
+    assert np.array_equal(arctan(-ATAN_ARGS), -arctan(ATAN_ARGS))
+
+
+@pytest.mark.parametrize("shape", [(), (7,), (3, 4), (2, 0)])
+def test_the_array_forms_keep_the_shape(shape):
+    x = np.linspace(0.0, 0.9, int(np.prod(shape))).reshape(shape)
+    for function, numpy_form in ((arctan, np.arctan), (sine, np.sin), (arccos, np.arccos)):
+        assert function(x).shape == shape
+        np.testing.assert_allclose(function(x), numpy_form(x), rtol=1e-15, atol=0.0)
+    assert arctan2(x, 1.0).shape == shape
