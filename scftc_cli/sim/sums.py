@@ -18,34 +18,20 @@ Both libraries start their sums from +0.0, so where every product is -0.0 they r
 the -0.0 the bare sum gives: the functions below add their sum to +0.0 (which changes nothing
 else; numba folds no ``0.0 + x``, which IEEE 754 does not allow).
 
-``fma`` is LLVM's ``llvm.fma.f64``: the hardware instruction where the CPU has one, a correctly
-rounded library call where not, so the same bits either way.
+``fma`` is ``elementary.fma`` (LLVM's ``llvm.fma.f64``).
 """
 
 from __future__ import annotations
 
 import numba
-from numba.core import types
-from numba.core.extending import intrinsic
 
-
-@intrinsic
-def fma(typingctx, a, b, c):  # pragma: no cover - compiled
-    """``a * b + c`` with one rounding (numba only)."""
-    signature = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, sig, args):
-        return builder.fma(*args)
-
-    return signature, codegen
+from scftc_cli.sim.elementary import fma
 
 
 @numba.njit(inline="always")
-def gemm4(x0, x1, x2, x3, b0, b1, b2, b3, single_row):  # pragma: no cover
-    """One output of ``x (n, 4) @ B (4, m)``: row ``x0..x3``, column ``b0..b3``; ``single_row``
-    is ``n == 1`` (numpy's pairwise loop instead of OpenBLAS's multiply-add chain)."""
-    if single_row:
-        return 0.0 + ((x0 * b0 + x1 * b1) + (x2 * b2 + x3 * b3))
+def gemm4(x0, x1, x2, x3, b0, b1, b2, b3):  # pragma: no cover
+    """One output of ``x (n, 4) @ B (4, m)``: row ``x0..x3``, column ``b0..b3``, as
+    ``products.matmul``'s chain."""
     return 0.0 + fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
 
 
@@ -63,12 +49,8 @@ def gemm_entry(a, i, b, j, terms):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def gemm3(x0, x1, x2, g0, g1, g2, single_row):  # pragma: no cover - compiled
-    """One output of ``x (n, 3) @ G.T`` (``G (m, 3)`` C-ordered, row ``g0..g2``) as numpy computes
-    it: OpenBLAS's ``dgemm`` multiply-add chain for ``n >= 2``; for one row numpy calls ``dgemv``,
-    whose kernel starts from the middle product: ``fma(x2, g2, fma(x0, g0, x1 g1))`` (module docstring)."""
-    if single_row:
-        return 0.0 + fma(x2, g2, fma(x0, g0, x1 * g1))  # type: ignore[call-arg]
+def gemm3(x0, x1, x2, g0, g1, g2):  # pragma: no cover - compiled
+    """One output of ``x (n, 3) @ G.T`` (row ``g0..g2`` of ``G``) as ``products.matmul``'s chain."""
     return 0.0 + fma(x2, g2, fma(x1, g1, x0 * g0))  # type: ignore[call-arg]
 
 

@@ -54,6 +54,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
+from scftc_cli.sim.products import matmul
 from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import clip, inverse3
 from scftc_cli.sim.sums import einsum3, gemm3
@@ -487,7 +488,7 @@ class WheelMonitor:
         clip (the sample is linear in ``theta``)."""
         assert self.last_tach is not None and self.last_gyro is not None
         w, u = self.w, self.w.u_max_nm
-        dw = (gyro - self.last_gyro) @ w.spin_axes.T
+        dw = matmul(gyro - self.last_gyro, w.spin_axes.T)
         tau = w.spin_inertia_kgm2 * ((tach - self.last_tach) + dw) / self.dt / u
         shape, mean_speed, exact = friction_shape(self.last_tach, tach, self.coulomb_nm, w, self.dt)
         tau = tau + w.viscous_nms * mean_speed / u  # the known viscous part, moved to the left
@@ -526,7 +527,7 @@ class WheelMonitor:
                 as_f64(w.spin_axes), self.theta, float(w.spin_inertia_kgm2), float(w.u_max_nm),
                 float(self.dt), float(w.viscous_nms), float(w.omega_linear_rad_s),
                 float(w.omega_max_rad_s - 0.5), float(1.0 - s.clip_margin), self.sigma, float(s.drift),
-                float(s.threshold), self.k % s.buffer, len(tach) == 1, self.buf_x, self.buf_tau,
+                float(s.threshold), self.k % s.buffer, self.buf_x, self.buf_tau,
                 self.buf_ok, self.buf_z, self.buf_tested, self.A, self.y, self.cusum, self.since_zero,
                 statistic, alarm, parallel=self.n >= HEAVY_PARALLEL_MIN_BATCH,
             )  # fmt: skip
@@ -650,7 +651,6 @@ def _observe_rows(
     drift,
     threshold,
     slot,
-    single_row,
     buf_x,
     buf_tau,
     buf_ok,
@@ -667,13 +667,13 @@ def _observe_rows(
     (``WheelMonitor._sample``), its normalized residual against the a-priori estimate ``theta``,
     the ring buffer's ``slot``, the window's sums ``A`` and ``y`` and the CUSUM (``cusum``,
     ``since_zero``) in place; the statistic and the alarms into ``statistic`` and ``alarm``. The
-    same operations in the same order as the numpy form (the wheel rates' ``@`` as numpy's, for one
-    row or many: ``single_row``). ``np.maximum(0.0, v)`` is ``v`` or ``0.0`` as below: ``v``, a sum
+    same operations in the same order as the numpy form (the wheel rates' product as
+    ``products.matmul``'s chain). ``np.maximum(0.0, v)`` is ``v`` or ``0.0`` as below: ``v``, a sum
     minus the positive drift, is never -0.0."""
     for e in numba.prange(tach.shape[0]):
         d0, d1, d2 = gyro[e, 0] - last_gyro[e, 0], gyro[e, 1] - last_gyro[e, 1], gyro[e, 2] - last_gyro[e, 2]
         for i in range(tach.shape[1]):
-            dw = gemm3(d0, d1, d2, axes[i, 0], axes[i, 1], axes[i, 2], single_row)
+            dw = gemm3(d0, d1, d2, axes[i, 0], axes[i, 1], axes[i, 2])
             tau = js * ((tach[e, i] - last_tach[e, i]) + dw) / dt / u
             gain, bias, level = theta[e, i, 0], theta[e, i, 1], theta[e, i, 2]
             shape, mean_speed, exact = _shape_row(

@@ -35,6 +35,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context, Controller, WheelKnowledge
+from scftc_cli.sim.products import matmul
 from scftc_cli.sim.scalars import inverse3
 from scftc_cli.versions.v2.controllers.law import (
     AttitudeFuser,
@@ -145,7 +146,7 @@ class WheelTorqueMeter:
         sample = None
         if self.gyro is not None and self.tach is not None:
             w, start = self.wheels, self.tach
-            turned = (gyro - self.gyro) @ w.spin_axes.T
+            turned = matmul(gyro - self.gyro, w.spin_axes.T)
             torque = self.scale * (tach - start + turned)
             if self.friction == "ramp":
                 z = torque + w.viscous_nms * 0.5 * (start + tach) / w.u_max_nm

@@ -28,6 +28,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.products import matmul
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import linalg_inv
 from scftc_cli.sim.sums import einsum3, gemm4, gemm_entry
@@ -240,7 +241,7 @@ def torque_demand(
     """``L = -I0 (Kp sigma + Kd w) + w x (I0 w + sum_i Js Omega_i g_i)`` ``(n, 3)`` N m."""
     wheels = wheels_of(context)
     inertia = context.inertia_nominal_kgm2
-    momentum = inertia * gyro + (wheels.spin_inertia_kgm2 * tachometers) @ wheels.spin_axes
+    momentum = inertia * gyro + matmul(wheels.spin_inertia_kgm2 * tachometers, wheels.spin_axes)
     return -inertia * (kp_s2 * sigma + kd_s * gyro) + cross(gyro, momentum)
 
 
@@ -408,7 +409,7 @@ def allocate(
     """
     u_max = wheels.u_max_nm
     working = np.abs(gain_hat) > dead_below
-    dead_friction = np.where(working, 0.0, friction_hat_nm) @ wheels.spin_axes
+    dead_friction = matmul(np.where(working, 0.0, friction_hat_nm), wheels.spin_axes)
     target = -(demand_nm + dead_friction) / u_max
     cancel = (np.asarray(bias_hat) + friction_hat_nm / u_max) / np.where(working, gain_hat, 1.0)
     command = np.einsum("nij,nj->ni", allocation_matrix, target) - np.where(working, cancel, 0.0)
@@ -428,7 +429,7 @@ def _clip1(x):  # pragma: no cover - compiled
 @numba.njit(inline="always")
 def _law_episode(
     e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
-    beliefs, inertia, axes, scalars, single_row, out,
+    beliefs, inertia, axes, scalars, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     """One episode of ``fuse -> torque_demand -> friction_nm -> allocate``, the same operations
     in the same order as the numpy functions above (the sums through ``scftc_cli.sim.sums``)."""
@@ -439,9 +440,9 @@ def _law_episode(
     js, kp, kd, u_max, viscous, linear, dead_below = scalars
     w0, w1, w2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
     x0, x1, x2, x3 = js * obs[e, 15], js * obs[e, 16], js * obs[e, 17], js * obs[e, 18]
-    m0 = inertia[0] * w0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
-    m1 = inertia[1] * w1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
-    m2 = inertia[2] * w2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    m0 = inertia[0] * w0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    m1 = inertia[1] * w1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    m2 = inertia[2] * w2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     s0, s1, s2 = sigma_out[e, 0], sigma_out[e, 1], sigma_out[e, 2]
     d0 = -inertia[0] * (kp * s0 + kd * w0) + (w1 * m2 - w2 * m1)
     d1 = -inertia[1] * (kp * s1 + kd * w1) + (w2 * m0 - w0 * m2)
@@ -455,9 +456,9 @@ def _law_episode(
     u1 = 0.0 if abs(beliefs[late, e, 0, 1]) > dead_below else f1
     u2 = 0.0 if abs(beliefs[late, e, 0, 2]) > dead_below else f2
     u3 = 0.0 if abs(beliefs[late, e, 0, 3]) > dead_below else f3
-    r0 = -(d0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)) / u_max
-    r1 = -(d1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)) / u_max
-    r2 = -(d2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)) / u_max
+    r0 = -(d0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
+    r1 = -(d1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
+    r2 = -(d2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
     out[e, 0] = _command(allocations, beliefs, late, e, 0, f0, r0, r1, r2, u_max, dead_below)
     out[e, 1] = _command(allocations, beliefs, late, e, 1, f1, r0, r1, r2, u_max, dead_below)
     out[e, 2] = _command(allocations, beliefs, late, e, 2, f2, r0, r1, r2, u_max, dead_below)
@@ -502,11 +503,10 @@ def _law_rows(
     scalars, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     heads, valid, gyro = obs[:, 0:9], obs[:, 9:12], obs[:, 12:15]
-    single_row = obs.shape[0] == 1
     for e in numba.prange(obs.shape[0]):
         _law_episode(
             e, obs, heads, valid, gyro, sigma, last_gyro, started, dt, sigma_out, k, onset, allocations,
-            beliefs, inertia, axes, scalars, single_row, out,
+            beliefs, inertia, axes, scalars, out,
         )  # fmt: skip
 
 

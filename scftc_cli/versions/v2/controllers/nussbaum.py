@@ -35,6 +35,7 @@ import numpy as np
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
 from scftc_cli.sim.mrp import cross
+from scftc_cli.sim.products import matmul
 from scftc_cli.versions.v2.controllers.law import (
     KD_S,
     KP_S2,
@@ -90,10 +91,10 @@ class Nussbaum(Tuned, Controller):
         heads, valid, gyro, tach = split_observation(obs)
         sigma = self.fuser.update(heads, valid, gyro, ctx.dt_s)
         inertia, u_max, js = ctx.inertia_nominal_kgm2, wheels.u_max_nm, wheels.spin_inertia_kgm2
-        hub = inertia * (p.kp_s2 * sigma + p.kd_s * gyro) @ self.pinv.T
-        s = -hub / u_max + p.k_null * js * (tach @ self.null_projector) / u_max
-        momentum = inertia * gyro + (js * tach) @ wheels.spin_axes
-        feed_forward = -(cross(gyro, momentum) @ self.pinv.T) / u_max
+        hub = matmul(inertia * (p.kp_s2 * sigma + p.kd_s * gyro), self.pinv.T)
+        s = -hub / u_max + p.k_null * js * matmul(tach, self.null_projector) / u_max
+        momentum = inertia * gyro + matmul(js * tach, wheels.spin_axes)
+        feed_forward = -matmul(cross(gyro, momentum), self.pinv.T) / u_max
         feed_forward -= friction_nm(tach, wheels.coulomb_nm, wheels) / u_max
         u_bar = s + self.d_hat - feed_forward
         command = np.clip(-nussbaum_gain(self.zeta, p.zeta0) * u_bar, -1.0, 1.0)

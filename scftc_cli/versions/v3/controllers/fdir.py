@@ -38,6 +38,7 @@ import numpy as np
 
 from scftc_cli.protocol import Context
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.products import matmul
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.law import friction_nm, vote
 from scftc_cli.versions.v3.controllers import fdir_fused
@@ -300,7 +301,7 @@ class FDIR(MissionLaw):
         c = np.ascontiguousarray  # C-ordered, as the pass is compiled for
         readings = (c(gyro), c(last["gyro"]), c(tach), c(last["tach"]), c(last["command"]), c(last["field"]))
         run_rows(
-            fdir_fused.wheel_rod_pass, *readings, self.k, gyro.shape[0] == 1, axes, rod_axes, *plant,
+            fdir_fused.wheel_rod_pass, *readings, self.k, axes, rod_axes, *plant,
             *settings, *wheel_state, *rod_state, parallel=gyro.shape[0] >= PARALLEL_MIN_BATCH,
         )  # fmt: skip
 
@@ -312,7 +313,7 @@ class FDIR(MissionLaw):
         axes = w.spin_axes
         d_omega = (gyro - self.last["gyro"]) / dt
         d_wheel = (tach - self.last["tach"]) / dt
-        applied = w.spin_inertia_kgm2 * (d_wheel + d_omega @ axes.T)  # (n, m) motor + friction
+        applied = w.spin_inertia_kgm2 * (d_wheel + matmul(d_omega, axes.T))  # (n, m) motor + friction
         friction = 0.5 * (
             friction_nm(self.last["tach"], w.coulomb_nm, w) + friction_nm(tach, w.coulomb_nm, w)
         )
@@ -353,7 +354,9 @@ class FDIR(MissionLaw):
         torquing = np.abs(dipole).max(axis=1) > 0.1 * self.rods.dipole_max_am2  # else nothing to learn
         holding = (np.sqrt(norm2(mean_w)) < t.hold_rate_rad_s) & torquing & (self.k > 2)
         # L = I dw/dt + w x H + sum_i g_i tau_i, with dw/dt ~ 0 and I w small while holding
-        y_rod = applied @ axes + cross(mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context))
+        y_rod = matmul(applied, axes) + cross(
+            mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context)
+        )
         scale = self.rods.dipole_max_am2 * np.maximum(np.sqrt(norm2(self.last["field"])), 1e-9)[:, None]
         phi_rod, y_rod = phi_rod / scale[:, :, None], y_rod / scale
         for row in range(3):

@@ -79,7 +79,7 @@ def _latch(count, raised, condition, persist):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, parallel=True)
 def wheel_rod_pass(
-    gyro, last_gyro, tach, last_tach, last_command, last_field, k, single_row,
+    gyro, last_gyro, tach, last_tach, last_command, last_field, k,
     axes, rod_axes, spin_inertia, u_max, speed_cap, coulomb, viscous, linear, dipole_max, dt,
     forgetting, offset_rate, gain_variance_max, warmup_steps, burst_offset, dead_gain, half_gain,
     probe_dead_zone, reprobe_steps, probe_steps, gain_tol, offset_tol, persist_steps,
@@ -107,7 +107,7 @@ def wheel_rod_pass(
             d_omega2 = (gyro[r, 2] - last_gyro[r, 2]) / dt
             for i in range(m):
                 d_wheel = (tach[r, i] - last_tach[r, i]) / dt
-                along = gemm3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2], single_row)
+                along = gemm3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2])
                 applied[i] = spin_inertia * (d_wheel + along)
                 friction = 0.5 * (
                     _friction(last_tach[r, i], coulomb, viscous, linear)
@@ -168,14 +168,14 @@ def wheel_rod_pass(
                     spin_inertia * (0.5 * (tach[r, 1] + last_tach[r, 1])),
                     spin_inertia * (0.5 * (tach[r, 2] + last_tach[r, 2])),
                     spin_inertia * (0.5 * (tach[r, 3] + last_tach[r, 3])),
-                    axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row,
+                    axes[0, c], axes[1, c], axes[2, c], axes[3, c],
                 )  # fmt: skip
             turn0 = w1 * h[2] - w2 * h[1]
             turn1 = w2 * h[0] - w0 * h[2]
             turn2 = w0 * h[1] - w1 * h[0]
             for c in range(3):
                 a0, a1, a2, a3 = applied[0], applied[1], applied[2], applied[3]
-                base = gemm4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c], single_row)
+                base = gemm4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c])
                 y_rod[c] = base + (turn0 if c == 0 else (turn1 if c == 1 else turn2))
             scale = dipole_max * max(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-9)
             if holding:

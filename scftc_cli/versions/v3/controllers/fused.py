@@ -29,6 +29,7 @@ from scftc_cli.versions.v3.controllers.law import (
     NULL_TARGET_RAD_S,
     SLEW_RATE_RAD_S,
     UNLOAD_GAIN_PER_S,
+    null_speed,
 )
 
 ALLOCATE_DEAD_BELOW = 1e-6
@@ -98,7 +99,7 @@ def law_commands(
     if m != 4 or tach.shape != gain.shape or gain.shape[1] != 4:
         raise ValueError(f"the compiled law flies 4 wheels: {m} axes, tach {tach.shape}, gain {gain.shape}")
     nu = np.full(m, 1.0 / np.sqrt(m))
-    along = tach @ nu - null_target_rad_s * np.sqrt(m)  # numpy's own sum: kept outside the kernel
+    along = null_speed(tach, nu) - null_target_rad_s * np.sqrt(m)
     out = np.empty((tach.shape[0], m + 3))
     n = tach.shape[0]
     run_rows(
@@ -118,7 +119,7 @@ def law_commands(
 
 @numba.njit(inline="always")
 def _demand_episode(
-    e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out
+    e, error, gyro, tach, inertia, js, axes, kp, kd, slew, out
 ):  # pragma: no cover - compiled
     """``law.rate_limited_demand`` of one episode."""
     # e - e, not 0: prange's index may be unsigned, and numba unifies uint64 with int64 as float64
@@ -130,9 +131,9 @@ def _demand_episode(
     w0, w1, w2 = w0 * scale, w1 * scale, w2 * scale
     x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
     g0, g1, g2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
-    m0 = inertia[0] * g0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
-    m1 = inertia[1] * g1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
-    m2 = inertia[2] * g2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    m0 = inertia[0] * g0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    m1 = inertia[1] * g1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    m2 = inertia[2] * g2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     kd_row = kd[e if kd.shape[0] > 1 else e - e]
     out[e, 0] = -inertia[0] * kd_row * (g0 - w0) + (g1 * m2 - g2 * m1)
     out[e, 1] = -inertia[1] * kd_row * (g1 - w1) + (g2 * m0 - g0 * m2)
@@ -160,13 +161,13 @@ def _wheel(matrix_row, g, offset, friction, r0, r1, r2, u_max, dead_below, drain
 @numba.njit(inline="always")
 def _commands_episode(
     e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
-    axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
+    axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
 ):  # fmt: skip  # pragma: no cover - compiled
     """``MissionLaw.act`` after its hooks, one episode (four wheels, three rods)."""
     x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
-    h0 = gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)
-    h1 = gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)
-    h2 = gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)
+    h0 = gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    h1 = gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    h2 = gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     b0, b1, b2 = field[e, 0], field[e, 1], field[e, 2]
     # law.unloading_dipole, times the unloading switch, then law.rod_commands
     bb = max(b0 * b0 + b1 * b1 + b2 * b2, 1e-18)
@@ -186,9 +187,9 @@ def _commands_episode(
     u1 = 0.0 if abs(w1) > dead_below else friction[e, 1]
     u2 = 0.0 if abs(w2) > dead_below else friction[e, 2]
     u3 = 0.0 if abs(w3) > dead_below else friction[e, 3]
-    r0 = -(l0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0], single_row)) / u_max
-    r1 = -(l1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1], single_row)) / u_max
-    r2 = -(l2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2], single_row)) / u_max
+    r0 = -(l0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
+    r1 = -(l1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
+    r2 = -(l2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
     # law.null_space_commands: none where a wheel is believed dead
     all_working = abs(w0) > 1e-6 and abs(w1) > 1e-6 and abs(w2) > 1e-6 and abs(w3) > 1e-6
     scale = null_scale * along[e] / u_max
@@ -205,9 +206,8 @@ def _commands_episode(
 
 @numba.njit(parallel=True, cache=True)
 def _demand_rows(error, gyro, tach, inertia, js, axes, kp, kd, slew, out):  # pragma: no cover
-    single_row = error.shape[0] == 1
     for e in numba.prange(error.shape[0]):
-        _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, single_row, out)
+        _demand_episode(e, error, gyro, tach, inertia, js, axes, kp, kd, slew, out)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -215,9 +215,8 @@ def _commands_rows(
     demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix, js,
     axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
 ):  # fmt: skip  # pragma: no cover - compiled
-    single_row = tach.shape[0] == 1
     for e in numba.prange(tach.shape[0]):
         _commands_episode(
             e, demand, field, rod_gain, unload, gain, offset, friction, disturbance, tach, along, matrix,
-            js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, single_row, out,
+            js, axes, u_max, m_max, unload_gain, null_scale, nu, dead_below, out,
         )  # fmt: skip

@@ -23,6 +23,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, RodKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.products import matmul
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v2.controllers.law import split_observation as split_v2
 
@@ -58,7 +59,7 @@ def wheel_momentum(tach: np.ndarray, context: Context) -> np.ndarray:
     """``Js sum_i Omega_i g_i`` ``(n, 3)`` N m s, body frame."""
     wheels = context.wheels
     assert wheels is not None
-    return (wheels.spin_inertia_kgm2 * tach) @ wheels.spin_axes
+    return matmul(wheels.spin_inertia_kgm2 * tach, wheels.spin_axes)
 
 
 def rate_limited_demand(
@@ -89,6 +90,24 @@ def unloading_dipole(
     return np.clip(m, -rods.dipole_max_am2, rods.dipole_max_am2)
 
 
+def null_speed(tach: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """``nu . Omega`` ``(n,)``: the wheel speeds ``tach`` ``(n, m)`` along the null vector ``nu``
+    ``(m,)``, in two lanes (``sum_lanes``)."""
+    return sum_lanes(tach * nu)
+
+
+def sum_lanes(terms: np.ndarray) -> np.ndarray:
+    """The sum over the last axis of ``terms`` ``(n, m)`` in this order: the even-indexed terms
+    left to right, the odd-indexed likewise, then the two added (``(t0 + t2) + (t1 + t3)`` for four
+    wheels), finally added to +0.0."""
+    even, odd = terms[:, 0], terms[:, 1] if terms.shape[1] > 1 else np.zeros(len(terms))
+    for i in range(2, terms.shape[1], 2):
+        even = even + terms[:, i]
+    for i in range(3, terms.shape[1], 2):
+        odd = odd + terms[:, i]
+    return 0.0 + (even + odd)
+
+
 def null_space_commands(
     tach: np.ndarray,
     gain: np.ndarray,
@@ -106,7 +125,7 @@ def null_space_commands(
     assert wheels is not None
     m = len(wheels.spin_axes)
     nu = np.full(m, 1.0 / np.sqrt(m))
-    along = tach @ nu - target_rad_s * np.sqrt(m)
+    along = null_speed(tach, nu) - target_rad_s * np.sqrt(m)
     working = np.all(np.abs(gain) > 1e-6, axis=1)
     scale = -rate_per_s * wheels.spin_inertia_kgm2 * along / wheels.u_max_nm
     command = scale[:, None] * nu / np.where(np.abs(gain) > 1e-6, gain, 1.0)

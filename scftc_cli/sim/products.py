@@ -1,0 +1,73 @@
+"""Small matrix products in the benchmark's own order, for the numpy code of plants and controllers.
+
+numpy's ``@`` hands a product to BLAS, whose kernel (chosen by CPU, or by ``OPENBLAS_CORETYPE``)
+decides the order and the fusing of its sums: the same product gives other last bits on another
+machine, and the closed loop amplifies them. A scored computation uses ``matmul`` instead, whose
+order is stated here:
+
+- every entry of ``a @ b`` is a *multiply-add chain*: the first product rounded, then one fused
+  multiply-add (``elementary.fma``: a single rounding) per further term, in index order, the
+  total finally added to +0.0 (so that a sum of -0.0 products is +0.0).
+
+Element-wise numpy arithmetic (``+ - * /``, ``sqrt``) is correctly rounded in any of numpy's loops
+and needs nothing of this: a short dot product written out (``a0 * b0 + a1 * b1``) is already an
+order of its own.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from scftc_cli.sim.elementary import fma
+
+
+@numba.njit(inline="always")
+def chain_entry(a, i, b, j, terms):  # pragma: no cover - compiled
+    """Entry ``(i, j)`` of ``a @ b`` over ``terms``: the multiply-add chain (module docstring).
+    ``a`` and ``b`` are 2-d arrays or views."""
+    total = a[i, 0] * b[0, j]
+    for k in range(1, terms):
+        total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
+    return 0.0 + total
+
+
+@numba.njit(cache=True)
+def _chain_stack(a, b, out):  # pragma: no cover - compiled
+    """``out[s] = a[s] @ b[s or 0]`` for a stack ``a`` ``(N, p, k)``, ``b`` ``(N or 1, k, m)``."""
+    shared = b.shape[0] == 1
+    for s in range(a.shape[0]):
+        bs = b[0] if shared else b[s]
+        for i in range(a.shape[1]):
+            for j in range(b.shape[2]):
+                out[s, i, j] = chain_entry(a[s], i, bs, j, a.shape[2])
+
+
+def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` in the stated order (module docstring): ``a`` ``(..., p, k)`` or ``(k,)``, ``b``
+    ``(k, m)``, ``(..., k, m)`` or ``(k,)``, leading axes broadcast as numpy's ``@`` does; a 1-d
+    operand is a row (``a``) or a column (``b``), dropped from the result."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    vector_a, vector_b = a.ndim == 1, b.ndim == 1
+    if vector_a:
+        a = a[None, :]
+    if vector_b:
+        b = b[:, None]
+    if a.shape[-1] != b.shape[-2] or a.shape[-1] == 0:
+        raise ValueError(f"matmul: shapes {a.shape} and {b.shape} do not chain")
+    lead = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+    p, m = a.shape[-2], b.shape[-1]
+    stack_a = np.ascontiguousarray(np.broadcast_to(a, (*lead, *a.shape[-2:]))).reshape(-1, p, a.shape[-1])
+    if b.ndim == 2:
+        stack_b = np.ascontiguousarray(b)[None]
+    else:
+        stack_b = np.ascontiguousarray(np.broadcast_to(b, (*lead, *b.shape[-2:]))).reshape(-1, *b.shape[-2:])
+    out = np.empty((stack_a.shape[0], p, m))
+    _chain_stack(stack_a, stack_b, out)
+    out = out.reshape(*lead, p, m)
+    if vector_b:
+        out = out[..., 0]
+    if vector_a:
+        out = out[..., 0, :] if not vector_b else out[..., 0]
+    return out
