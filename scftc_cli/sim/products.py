@@ -7,7 +7,14 @@ order is stated here:
 
 - every entry of ``a @ b`` is a *multiply-add chain*: the first product rounded, then one fused
   multiply-add (``elementary.fma``: a single rounding) per further term, in index order, the
-  total finally added to +0.0 (so that a sum of -0.0 products is +0.0).
+  total finally added to +0.0 (so that a sum of -0.0 products is +0.0; numba folds no ``0.0 + x``,
+  which IEEE 754 does not allow). Compiled kernels write the same chain with ``chain_entry``,
+  ``chain3`` and ``chain4``;
+- a matrix times a vector of three terms inside a compiled kernel (an allocation matrix times the
+  torque target, a gain matrix times an innovation) is ``split_dot3``: ``(p0 + p2) + p1``, each
+  product rounded, then +0.0 (the order those kernels had when the boards were sealed).
+
+These are the orders the boards were sealed with: ``tests/golden`` holds their bits.
 
 Element-wise numpy arithmetic (``+ - * /``, ``sqrt``) is correctly rounded in any of numpy's loops
 and needs nothing of this: a short dot product written out (``a0 * b0 + a1 * b1``) is already an
@@ -30,6 +37,24 @@ def chain_entry(a, i, b, j, terms):  # pragma: no cover - compiled
     for k in range(1, terms):
         total = fma(a[i, k], b[k, j], total)  # type: ignore[call-arg]
     return 0.0 + total
+
+
+@numba.njit(inline="always")
+def chain4(x0, x1, x2, x3, b0, b1, b2, b3):  # pragma: no cover - compiled
+    """``x . b`` over four terms as the multiply-add chain."""
+    return 0.0 + fma(x3, b3, fma(x2, b2, fma(x1, b1, x0 * b0)))  # type: ignore[call-arg]
+
+
+@numba.njit(inline="always")
+def chain3(x0, x1, x2, b0, b1, b2):  # pragma: no cover - compiled
+    """``x . b`` over three terms as the multiply-add chain."""
+    return 0.0 + fma(x2, b2, fma(x1, b1, x0 * b0))  # type: ignore[call-arg]
+
+
+@numba.njit(inline="always")
+def split_dot3(m0, m1, m2, v0, v1, v2):  # pragma: no cover - compiled
+    """``m . v`` over three terms as ``(m0 v0 + m2 v2) + m1 v1`` (module docstring)."""
+    return 0.0 + ((m0 * v0 + m2 * v2) + m1 * v1)
 
 
 @numba.njit(cache=True)

@@ -54,10 +54,9 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
-from scftc_cli.sim.products import matmul
+from scftc_cli.sim.products import chain3, matmul, split_dot3
 from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import clip, inverse3
-from scftc_cli.sim.sums import einsum3, gemm3
 from scftc_cli.versions.v2.controllers.mekf import inv3
 
 
@@ -336,7 +335,7 @@ def _solve_rows(A, y, weight, prior, theta, cov):  # pragma: no cover - compiled
         v1 = y[r, 1] + weight[r, 1] * prior[r, 1]
         v2 = y[r, 2] + weight[r, 2] * prior[r, 2]
         for i in range(3):
-            theta[r, i] = einsum3(cov[r, i, 0], cov[r, i, 1], cov[r, i, 2], v0, v1, v2)
+            theta[r, i] = split_dot3(cov[r, i, 0], cov[r, i, 1], cov[r, i, 2], v0, v1, v2)
 
 
 @numba.njit(inline="always")
@@ -673,7 +672,7 @@ def _observe_rows(
     for e in numba.prange(tach.shape[0]):
         d0, d1, d2 = gyro[e, 0] - last_gyro[e, 0], gyro[e, 1] - last_gyro[e, 1], gyro[e, 2] - last_gyro[e, 2]
         for i in range(tach.shape[1]):
-            dw = gemm3(d0, d1, d2, axes[i, 0], axes[i, 1], axes[i, 2])
+            dw = chain3(d0, d1, d2, axes[i, 0], axes[i, 1], axes[i, 2])
             tau = js * ((tach[e, i] - last_tach[e, i]) + dw) / dt / u
             gain, bias, level = theta[e, i, 0], theta[e, i, 1], theta[e, i, 2]
             shape, mean_speed, exact = _shape_row(

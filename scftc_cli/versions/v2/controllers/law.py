@@ -28,10 +28,9 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import compose, cross, norm2
-from scftc_cli.sim.products import matmul
+from scftc_cli.sim.products import chain4, chain_entry, matmul, split_dot3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import linalg_inv
-from scftc_cli.sim.sums import einsum3, gemm4, gemm_entry
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
 KD_S = 0.14
@@ -292,9 +291,7 @@ def pseudo_inverse(
     no damping (``fdir``'s form).
 
     The products run compiled (``_gram_rows``, ``_pinv_rows``) around ``invert``: the bits of
-    ``pseudo_inverse_reference``. numpy's ``@`` on these stacks is OpenBLAS's ``dsyrk``/``dgemm``,
-    which under the pinned kernels sums each output as the first product rounded, then one fused
-    multiply-add per further term in order (``sim/sums.py``)."""
+    ``pseudo_inverse_reference``: each product entry is ``sim/products.py``'s multiply-add chain."""
     matrix = as_f64(matrix)
     if matrix.ndim != 3 or matrix.shape[1] != 3 or matrix.shape[2] < 2:  # another shape: numpy's
         return pseudo_inverse_reference(matrix, damping, invert, floor_zero_trace)
@@ -323,7 +320,7 @@ def pseudo_inverse_reference(
 @numba.njit(cache=True, parallel=True)
 def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - compiled
     """``M M' + eps I`` ``(n, 3, 3)`` of ``pseudo_inverse_reference`` into ``out``: each entry of
-    ``M M'`` as OpenBLAS sums it (a multiply-add chain over the wheels, from +0.0), the trace
+    ``M M'`` as ``products``' multiply-add chain over the wheels, the trace
     summed left to right as numpy reduces three terms, and ``eps I`` added to every entry (``+ 0.0``
     off the diagonal, which turns a -0.0 into +0.0 as numpy's addition does)."""
     m = matrix.shape[2]
@@ -331,7 +328,7 @@ def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - co
         rows = matrix[e]
         for i in range(3):
             for j in range(3):
-                out[e, i, j] = gemm_entry(rows, i, rows.T, j, m)
+                out[e, i, j] = chain_entry(rows, i, rows.T, j, m)
         trace = (out[e, 0, 0] + out[e, 1, 1]) + out[e, 2, 2]
         eps = damping * (trace if trace > 0.0 or not floor_zero_trace else 1.0)
         for i in range(3):
@@ -342,12 +339,12 @@ def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - co
 @numba.njit(cache=True, parallel=True)
 def _pinv_rows(matrix, inverse, out):  # pragma: no cover - compiled
     """``M' X`` ``(n, m, 3)`` of ``matrix`` ``(n, 3, m)`` and ``inverse`` ``(n, 3, 3)`` into ``out``,
-    each entry as OpenBLAS's ``dgemm`` sums it (a multiply-add chain over the three rows, from +0.0)."""
+    each entry ``products``' multiply-add chain over the three rows."""
     for e in numba.prange(matrix.shape[0]):
         columns = matrix[e].T
         for i in range(matrix.shape[2]):
             for j in range(3):
-                out[e, i, j] = gemm_entry(columns, i, inverse[e], j, 3)
+                out[e, i, j] = chain_entry(columns, i, inverse[e], j, 3)
 
 
 def allocation(gain_hat: np.ndarray, wheels: WheelKnowledge) -> np.ndarray:
@@ -440,9 +437,9 @@ def _law_episode(
     js, kp, kd, u_max, viscous, linear, dead_below = scalars
     w0, w1, w2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
     x0, x1, x2, x3 = js * obs[e, 15], js * obs[e, 16], js * obs[e, 17], js * obs[e, 18]
-    m0 = inertia[0] * w0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
-    m1 = inertia[1] * w1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
-    m2 = inertia[2] * w2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
+    m0 = inertia[0] * w0 + chain4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    m1 = inertia[1] * w1 + chain4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    m2 = inertia[2] * w2 + chain4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     s0, s1, s2 = sigma_out[e, 0], sigma_out[e, 1], sigma_out[e, 2]
     d0 = -inertia[0] * (kp * s0 + kd * w0) + (w1 * m2 - w2 * m1)
     d1 = -inertia[1] * (kp * s1 + kd * w1) + (w2 * m0 - w0 * m2)
@@ -456,9 +453,9 @@ def _law_episode(
     u1 = 0.0 if abs(beliefs[late, e, 0, 1]) > dead_below else f1
     u2 = 0.0 if abs(beliefs[late, e, 0, 2]) > dead_below else f2
     u3 = 0.0 if abs(beliefs[late, e, 0, 3]) > dead_below else f3
-    r0 = -(d0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
-    r1 = -(d1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
-    r2 = -(d2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
+    r0 = -(d0 + chain4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
+    r1 = -(d1 + chain4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
+    r2 = -(d2 + chain4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
     out[e, 0] = _command(allocations, beliefs, late, e, 0, f0, r0, r1, r2, u_max, dead_below)
     out[e, 1] = _command(allocations, beliefs, late, e, 1, f1, r0, r1, r2, u_max, dead_below)
     out[e, 2] = _command(allocations, beliefs, late, e, 2, f2, r0, r1, r2, u_max, dead_below)
@@ -486,7 +483,7 @@ def _friction_rows(speed, coulomb, viscous, linear, out):  # pragma: no cover
 @numba.njit(inline="always")
 def _command(allocations, beliefs, late, e, i, friction, r0, r1, r2, u_max, dead_below):  # pragma: no cover
     """``allocate``'s clipped command of wheel ``i``."""
-    command = einsum3(
+    command = split_dot3(
         allocations[late, e, i, 0], allocations[late, e, i, 1], allocations[late, e, i, 2], r0, r1, r2
     )
     g = beliefs[late, e, 0, i]

@@ -40,9 +40,9 @@ import numpy as np
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.mrp_fused import compose_row, norm2_row
+from scftc_cli.sim.products import chain_entry, split_dot3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import inverse3
-from scftc_cli.sim.sums import einsum3, gemm_entry
 from scftc_cli.versions.v2.controllers.law import nearest_branch, nearest_branch_row, rotation_mrp, vote
 
 
@@ -380,9 +380,8 @@ class MEKF:
 
 
 # ---------------------------------------------------------------------------------------------
-# The covariance's algebra compiled. Each matrix product is summed as numpy's ``@`` sums it on
-# these stacks (OpenBLAS's ``dgemm``/``dsyrk`` under the pinned kernels: the first product
-# rounded, then one fused multiply-add per further term, from +0.0; ``sim/sums.py``), every
+# The covariance's algebra compiled. Each matrix product is ``sim/products.py``'s multiply-add
+# chain (the first product rounded, then one fused multiply-add per further term, from +0.0), every
 # element-wise step is the same IEEE operation as in the numpy form, and a test compares the bits.
 # ``error_model="numpy"`` where a kernel divides: a zero divisor gives IEEE's inf or NaN, as in
 # numpy, instead of an exception.
@@ -417,14 +416,16 @@ def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no 
         a_ptb = np.empty((3, 3))
         for i in range(3):
             for j in range(3):
-                a_ptt[i, j] = gemm_entry(a, i, p, j, 3) + gemm_entry(b, i, ptb_t, j, 3)
-                a_ptb[i, j] = gemm_entry(a, i, ptb, j, 3) + gemm_entry(b, i, pbb, j, 3)
+                a_ptt[i, j] = chain_entry(a, i, p, j, 3) + chain_entry(b, i, ptb_t, j, 3)
+                a_ptb[i, j] = chain_entry(a, i, ptb, j, 3) + chain_entry(b, i, pbb, j, 3)
         a_t, b_t = a.T, b.T
         full = np.empty((6, 6))
         for i in range(3):
             for j in range(3):
                 eye = 1.0 if i == j else 0.0
-                full[i, j] = (gemm_entry(a_ptt, i, a_t, j, 3) + gemm_entry(a_ptb, i, b_t, j, 3)) + q_tt * eye
+                full[i, j] = (
+                    chain_entry(a_ptt, i, a_t, j, 3) + chain_entry(a_ptb, i, b_t, j, 3)
+                ) + q_tt * eye
                 full[i, 3 + j] = a_ptb[i, j] + q_tb * eye
                 full[3 + i, 3 + j] = pbb[i, j] + q_bb * eye
         for i in range(3):
@@ -462,10 +463,10 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
         K = np.empty((6, 3))
         for u in range(6):
             for v in range(3):
-                K[u, v] = gemm_entry(p, u, s_inv, v, 3)
+                K[u, v] = chain_entry(p, u, s_inv, v, 3)
         nu0, nu1, nu2 = nu_mean[row, 0], nu_mean[row, 1], nu_mean[row, 2]
         for u in range(6):
-            out_dx[row, u] = einsum3(K[u, 0], K[u, 1], K[u, 2], nu0, nu1, nu2) if live else 0.0
+            out_dx[row, u] = split_dot3(K[u, 0], K[u, 1], K[u, 2], nu0, nu1, nu2) if live else 0.0
         if live:
             ikh = np.empty((6, 6))  # I - K H, H = [I 0]
             for u in range(6):
@@ -475,12 +476,12 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
             left = np.empty((6, 6))
             for u in range(6):
                 for v in range(6):
-                    left[u, v] = gemm_entry(ikh, u, p, v, 6)
+                    left[u, v] = chain_entry(ikh, u, p, v, 6)
             ikh_t, k_t = ikh.T, K.T
             full = np.empty((6, 6))
             for u in range(6):
                 for v in range(6):
-                    full[u, v] = gemm_entry(left, u, ikh_t, v, 6) + r * gemm_entry(K, u, k_t, v, 3)
+                    full[u, v] = chain_entry(left, u, ikh_t, v, 6) + r * chain_entry(K, u, k_t, v, 3)
             for u in range(6):
                 for v in range(6):
                     out_p[row, u, v] = 0.5 * (full[u, v] + full[v, u])

@@ -5,10 +5,9 @@ place.
 Per episode and step: the torque each wheel applied (tachometers and gyro), its recursive least
 squares on ``[a, 1]``, the fast offset observer, the failed / degraded latches with the probe
 schedule; then the rods' momentum balance, its three sequential least-squares rows, the rods'
-latches. Sums run in numpy's and OpenBLAS's order (``sim/sums.py``): ``d_omega @ G'`` and the
-``(n, 4) @ G`` products are OpenBLAS's multiply-add chains for a batch and numpy's one-row paths for
-one episode (``gemm3``, ``sums.gemm4``); ``rls_row`` is the least-squares step ``fdir.rls_update``
-runs on each row.
+latches. Sums run in ``sim/products.py``'s order: ``d_omega @ G'`` and the ``(n, 4) @ G``
+products are its multiply-add chains (``chain3``, ``chain4``); ``rls_row`` is the least-squares
+step ``fdir.rls_update`` runs on each row.
 """
 
 from __future__ import annotations
@@ -18,8 +17,8 @@ import math
 import numba
 import numpy as np
 
+from scftc_cli.sim.products import chain3, chain4
 from scftc_cli.sim.rows import CHUNK_ROWS
-from scftc_cli.sim.sums import gemm3, gemm4
 
 
 @numba.njit(inline="always")
@@ -107,7 +106,7 @@ def wheel_rod_pass(
             d_omega2 = (gyro[r, 2] - last_gyro[r, 2]) / dt
             for i in range(m):
                 d_wheel = (tach[r, i] - last_tach[r, i]) / dt
-                along = gemm3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2])
+                along = chain3(d_omega0, d_omega1, d_omega2, axes[i, 0], axes[i, 1], axes[i, 2])
                 applied[i] = spin_inertia * (d_wheel + along)
                 friction = 0.5 * (
                     _friction(last_tach[r, i], coulomb, viscous, linear)
@@ -163,7 +162,7 @@ def wheel_rod_pass(
             torquing = largest > 0.1 * dipole_max
             holding = (math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) < hold_rate) and torquing and (k > 2)
             for c in range(3):
-                h[c] = gemm4(
+                h[c] = chain4(
                     spin_inertia * (0.5 * (tach[r, 0] + last_tach[r, 0])),
                     spin_inertia * (0.5 * (tach[r, 1] + last_tach[r, 1])),
                     spin_inertia * (0.5 * (tach[r, 2] + last_tach[r, 2])),
@@ -175,7 +174,7 @@ def wheel_rod_pass(
             turn2 = w0 * h[1] - w1 * h[0]
             for c in range(3):
                 a0, a1, a2, a3 = applied[0], applied[1], applied[2], applied[3]
-                base = gemm4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c])
+                base = chain4(a0, a1, a2, a3, axes[0, c], axes[1, c], axes[2, c], axes[3, c])
                 y_rod[c] = base + (turn0 if c == 0 else (turn1 if c == 1 else turn2))
             scale = dipole_max * max(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-9)
             if holding:

@@ -2,7 +2,7 @@
 
 ``law.py`` and ``v2``'s ``allocate`` stay the readable definition of the law; the functions here
 perform exactly their operations, in the same order, per episode in one numba loop (the small dot
-products through ``scftc_cli.sim.sums``, which sums them as numpy and OpenBLAS do), so a rollout
+products as ``scftc_cli.sim.products`` states their order), so a rollout
 gives the same bits either way (``tests/versions/v3/controllers/test_fused.py``). Numpy spends a
 v3 step of ``pd`` on some forty small array operations; here it is three calls.
 
@@ -20,9 +20,9 @@ import numpy as np
 
 from scftc_cli.protocol import Context, RodKnowledge, WheelKnowledge
 from scftc_cli.sim.mrp_fused import relative
+from scftc_cli.sim.products import chain4, split_dot3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import clip
-from scftc_cli.sim.sums import einsum3, gemm4
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v3.controllers.law import (
     NULL_RATE_PER_S,
@@ -131,9 +131,9 @@ def _demand_episode(
     w0, w1, w2 = w0 * scale, w1 * scale, w2 * scale
     x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
     g0, g1, g2 = gyro[e, 0], gyro[e, 1], gyro[e, 2]
-    m0 = inertia[0] * g0 + gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
-    m1 = inertia[1] * g1 + gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
-    m2 = inertia[2] * g2 + gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
+    m0 = inertia[0] * g0 + chain4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    m1 = inertia[1] * g1 + chain4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    m2 = inertia[2] * g2 + chain4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     kd_row = kd[e if kd.shape[0] > 1 else e - e]
     out[e, 0] = -inertia[0] * kd_row * (g0 - w0) + (g1 * m2 - g2 * m1)
     out[e, 1] = -inertia[1] * kd_row * (g1 - w1) + (g2 * m0 - g0 * m2)
@@ -152,7 +152,7 @@ def _rod(want, g, m_max):  # pragma: no cover - compiled
 def _wheel(matrix_row, g, offset, friction, r0, r1, r2, u_max, dead_below, drain):  # pragma: no cover
     """``allocate``'s clipped command of one wheel plus its null-space drain, clipped again."""
     working = abs(g) > dead_below
-    command = einsum3(matrix_row[0], matrix_row[1], matrix_row[2], r0, r1, r2)
+    command = split_dot3(matrix_row[0], matrix_row[1], matrix_row[2], r0, r1, r2)
     cancel = (offset + friction / u_max) / (g if working else 1.0)
     command = clip(command - (cancel if working else 0.0), 1.0)
     return clip(command + drain, 1.0)
@@ -165,9 +165,9 @@ def _commands_episode(
 ):  # fmt: skip  # pragma: no cover - compiled
     """``MissionLaw.act`` after its hooks, one episode (four wheels, three rods)."""
     x0, x1, x2, x3 = js * tach[e, 0], js * tach[e, 1], js * tach[e, 2], js * tach[e, 3]
-    h0 = gemm4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
-    h1 = gemm4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
-    h2 = gemm4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
+    h0 = chain4(x0, x1, x2, x3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])
+    h1 = chain4(x0, x1, x2, x3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])
+    h2 = chain4(x0, x1, x2, x3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])
     b0, b1, b2 = field[e, 0], field[e, 1], field[e, 2]
     # law.unloading_dipole, times the unloading switch, then law.rod_commands
     bb = max(b0 * b0 + b1 * b1 + b2 * b2, 1e-18)
@@ -187,9 +187,9 @@ def _commands_episode(
     u1 = 0.0 if abs(w1) > dead_below else friction[e, 1]
     u2 = 0.0 if abs(w2) > dead_below else friction[e, 2]
     u3 = 0.0 if abs(w3) > dead_below else friction[e, 3]
-    r0 = -(l0 + gemm4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
-    r1 = -(l1 + gemm4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
-    r2 = -(l2 + gemm4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
+    r0 = -(l0 + chain4(u0, u1, u2, u3, axes[0, 0], axes[1, 0], axes[2, 0], axes[3, 0])) / u_max
+    r1 = -(l1 + chain4(u0, u1, u2, u3, axes[0, 1], axes[1, 1], axes[2, 1], axes[3, 1])) / u_max
+    r2 = -(l2 + chain4(u0, u1, u2, u3, axes[0, 2], axes[1, 2], axes[2, 2], axes[3, 2])) / u_max
     # law.null_space_commands: none where a wheel is believed dead
     all_working = abs(w0) > 1e-6 and abs(w1) > 1e-6 and abs(w2) > 1e-6 and abs(w3) > 1e-6
     scale = null_scale * along[e] / u_max

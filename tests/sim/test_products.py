@@ -1,0 +1,109 @@
+"""``products.matmul`` and the compiled kernels' sums compute the orders their docstring states:
+checked against the same orders in exact rational arithmetic (each rounding made explicit), whatever
+the batch size, and never against numpy, whose order is OpenBLAS's choice."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numba
+import numpy as np
+import pytest
+
+from scftc_cli.sim.elementary import fma
+from scftc_cli.sim.products import chain3, chain4, matmul, split_dot3
+
+
+def _round(value: Fraction) -> float:
+    return float(value)  # Fraction -> float rounds to nearest, ties to even
+
+
+def _chain(row: np.ndarray, column: np.ndarray) -> float:
+    """The multiply-add chain, each fma one rounding of the exact ``a b + c``."""
+    total = _round(Fraction(row[0]) * Fraction(column[0]))
+    for a, b in zip(row[1:], column[1:], strict=True):
+        total = _round(Fraction(a) * Fraction(b) + Fraction(total))
+    return 0.0 + total
+
+
+def _rows(rng: np.random.Generator, *shape: int) -> np.ndarray:
+    return rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, size=shape)
+
+
+@numba.njit(cache=True)
+def _fma(a, b, c):  # pragma: no cover - compiled
+    out = np.empty(a.shape)
+    for i in range(a.size):
+        out[i] = fma(a[i], b[i], c[i])
+    return out
+
+
+@numba.njit(cache=True)
+def _short_sums(x4, b4, x3, b3):  # pragma: no cover - compiled
+    out = np.empty((x4.shape[0], 3))
+    for e in range(x4.shape[0]):
+        out[e, 0] = chain4(x4[e, 0], x4[e, 1], x4[e, 2], x4[e, 3], b4[e, 0], b4[e, 1], b4[e, 2], b4[e, 3])
+        out[e, 1] = chain3(x3[e, 0], x3[e, 1], x3[e, 2], b3[e, 0], b3[e, 1], b3[e, 2])
+        out[e, 2] = split_dot3(x3[e, 0], x3[e, 1], x3[e, 2], b3[e, 0], b3[e, 1], b3[e, 2])
+    return out
+
+
+def test_fma_rounds_once():
+    # (1 + 2^-30)^2 - 1 needs the product's low bits, which a rounded product loses
+    a = np.array([1.0 + 2.0**-30])
+    assert _fma(a, a, np.array([-1.0]))[0] == 2.0**-29 + 2.0**-60
+    assert (a * a - 1.0)[0] == 2.0**-29
+
+
+@pytest.mark.parametrize(("p", "k", "m"), [(1, 4, 3), (5, 4, 3), (3, 3, 4), (6, 6, 6), (2, 1, 2)])
+def test_every_entry_is_the_multiply_add_chain(p, k, m):
+    rng = np.random.default_rng(p * 100 + k * 10 + m)
+    a, b = _rows(rng, p, k), _rows(rng, k, m)
+    want = np.array([[_chain(a[i], b[:, j]) for j in range(m)] for i in range(p)])
+    np.testing.assert_array_equal(matmul(a, b), want)
+
+
+def test_the_kernels_short_sums_are_the_stated_orders():
+    rng = np.random.default_rng(7)
+    x4, b4, x3, b3 = _rows(rng, 300, 4), _rows(rng, 300, 4), _rows(rng, 300, 3), _rows(rng, 300, 3)
+    got = _short_sums(x4, b4, x3, b3)
+    np.testing.assert_array_equal(got[:, 0], [_chain(x, b) for x, b in zip(x4, b4, strict=True)])
+    np.testing.assert_array_equal(got[:, 1], [_chain(x, b) for x, b in zip(x3, b3, strict=True)])
+    p = x3 * b3
+    np.testing.assert_array_equal(got[:, 2], 0.0 + ((p[:, 0] + p[:, 2]) + p[:, 1]))
+
+
+def test_a_row_gets_the_same_bits_in_any_batch():
+    rng = np.random.default_rng(3)
+    x, g = _rows(rng, 257, 4), rng.normal(size=(4, 3))
+    whole = matmul(x, g)
+    for i in (0, 1, 128, 256):
+        np.testing.assert_array_equal(matmul(x[i : i + 1], g), whole[i : i + 1])
+        np.testing.assert_array_equal(matmul(x[i], g), whole[i])
+
+
+def test_stacks_vectors_and_broadcasting_follow_numpys_shapes():
+    rng = np.random.default_rng(5)
+    stack, other, vector = rng.normal(size=(7, 3, 3)), rng.normal(size=(7, 3, 3)), rng.normal(size=3)
+    for a, b in ((stack, other), (stack, other[0]), (stack, vector), (vector, stack), (vector, vector)):
+        assert matmul(a, b).shape == (a @ b).shape
+        np.testing.assert_allclose(matmul(a, b), a @ b, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(matmul(stack, np.swapaxes(other, 1, 2)), stack @ np.swapaxes(other, 1, 2))
+    with pytest.raises(ValueError, match="do not chain"):
+        matmul(stack, rng.normal(size=(4, 2)))
+
+
+def test_a_sum_of_negative_zeros_is_positive_zero():
+    x = np.tile([-1.0, 2.0, -3.0, 4.0], (3, 1))
+    b = np.array([[0.0], [-0.0], [0.0], [-0.0]])
+    assert np.all(np.signbit(x * b[:, 0]))  # every product is -0.0
+    assert not np.signbit(matmul(x, b)).any()
+
+
+def test_the_order_matters():
+    """Summed left to right without fusing, a large share of the rows differ in the last bit: the
+    order is part of the definition, not a detail."""
+    rng = np.random.default_rng(0)
+    x, b = _rows(rng, 10_000, 4), rng.normal(size=(4, 3))
+    p = x[:, :, None] * b[None]
+    assert ((((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) != matmul(x, b)).mean() > 0.1
