@@ -257,6 +257,30 @@ class EpisodeOutcomes:
 
 LIBRARIES = ("numpy", "numba", "scipy", "pydantic", "torch", "bsk", "gymnasium")
 
+NUMERICAL_STACK = ("numpy", "scipy", "numba", "llvmlite")
+"""The libraries ``constraints.txt`` pins for evaluation (torch only trains)."""
+
+
+def installed_version(name: str) -> str | None:
+    """The installed version of distribution ``name`` (package metadata: nothing is imported)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return None
+
+
+def numerical_stack() -> dict[str, str]:
+    """The numerical toolchain of this process: Python, the machine's architecture and the
+    ``NUMERICAL_STACK`` versions. A board records it when a round is sealed, and ``leaderboard
+    verify`` names what differs: the benchmark's own arithmetic does not depend on it
+    (docs/numerics.md), a submission's numpy code may."""
+    import platform
+
+    stack = {"python": platform.python_version(), "machine": platform.machine()}
+    return stack | {name: v for name in NUMERICAL_STACK if (v := installed_version(name)) is not None}
+
 
 PACKAGED = "scftc_cli/"
 """What a packaged artifact's key is recorded under (``scftc_cli/params/pid.yaml``): the package
@@ -276,15 +300,8 @@ def collect_provenance(
     import hashlib
     import platform
     import subprocess
-    from importlib.metadata import PackageNotFoundError, version
 
     from scftc_cli import __version__
-
-    def installed(name: str) -> str | None:
-        try:
-            return version(name)
-        except PackageNotFoundError:
-            return None
 
     root = Path(__file__).resolve().parent.parent
     commit, dirty = None, None
@@ -312,7 +329,7 @@ def collect_provenance(
         git_commit=commit,
         git_dirty=dirty,
         python=platform.python_version(),
-        libraries={name: v for name in LIBRARIES if (v := installed(name)) is not None},
+        libraries={name: v for name in LIBRARIES if (v := installed_version(name)) is not None},
         artifacts=(
             {PACKAGED + key: sha(path) for key, path in artifacts.items()}
             if isinstance(artifacts, Mapping)

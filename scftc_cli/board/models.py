@@ -302,6 +302,8 @@ class Round(BaseModel):
             was lost or must not be used; never revealed; its pending entries moved on).
         secret: the revealed secret (hex), once sealed.
         closed_board_version: the write that sealed or abandoned it.
+        toolchain: the numerical stack the seal ran on (``records.numerical_stack``: Python, the
+            machine, numpy, scipy, numba, llvmlite); empty for rounds sealed before it was recorded.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -314,6 +316,9 @@ class Round(BaseModel):
     secret: str | None = Field(default=None, pattern=HEX64)
     closed_board_version: int | None = Field(default=None, ge=1)
     reason: str = Field(default="", max_length=MAX_REASON_CHARS)
+    toolchain: dict[str, str] = Field(
+        default_factory=dict, description="The numerical stack the round was sealed with."
+    )
 
     @model_validator(mode="after")
     def _revealed_when_sealed(self) -> Round:

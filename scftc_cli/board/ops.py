@@ -39,7 +39,7 @@ from scftc_cli.board.rounds import commitment, round_secret, sealed_salt
 from scftc_cli.board.store import default_submissions_dir, read_board, update_board, utc_now
 from scftc_cli.errors import LeaderboardError, ScftcError, SubmissionRejected, UnknownNameError, UsageError
 from scftc_cli.evaluate import board_cells
-from scftc_cli.records import CellResult
+from scftc_cli.records import CellResult, numerical_stack
 from scftc_cli.registry import builtin_names, registry
 from scftc_cli.submission.isolation import sandbox_unavailable
 from scftc_cli.submission.manifest import Submission, load_submission
@@ -423,6 +423,7 @@ def seal(
                 report.sealed.append(entry.name)
         closing = board.rounds[number - 1]
         closing.status, closing.secret = "sealed", secret.hex()
+        closing.toolchain = numerical_stack()
         closing.closed_board_version = board.version + 1
         board.history.append(
             _event(board, "round-sealed", f"round {number}", f"secret {secret.hex()}", number)

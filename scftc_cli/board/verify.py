@@ -20,7 +20,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -125,6 +125,29 @@ def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]
             if not math.isclose(vb, vr, rel_tol=1e-6, abs_tol=1e-9):
                 diffs.append(f"{label} final error {stat} {vb:.6g} deg on the board, {vr:.6g} re-run")
     return diffs
+
+
+def toolchain_drift(board: Leaderboard, running: Mapping[str, str]) -> str | None:
+    """What differs between the numerical stack of the board's last recorded seal and ``running``
+    (``records.numerical_stack``), as one sentence; ``None`` where nothing does or no seal recorded
+    one. The benchmark's arithmetic does not depend on the stack; a submission's numpy code may, so
+    a submission that fails verify on another stack may be drift, not tampering."""
+    recorded = [r for r in board.rounds if r.status == "sealed" and r.toolchain]
+    if not recorded:
+        return None
+    last = recorded[-1]
+    differs = [
+        f"{name} {last.toolchain.get(name, 'none')} at the seal, {running.get(name, 'none')} here"
+        for name in sorted(set(last.toolchain) | set(running))
+        if last.toolchain.get(name) != running.get(name)
+    ]
+    if not differs:
+        return None
+    return (
+        f"round {last.number} was sealed on another numerical stack ({'; '.join(differs)}): the "
+        "benchmark's own arithmetic does not depend on it, a submission's numpy code may; install "
+        "with constraints.txt to match"
+    )
 
 
 @dataclass

@@ -204,10 +204,11 @@ def verify_command(
     """
     from scftc_cli.board.flights import Scoring
     from scftc_cli.board.store import read_board
-    from scftc_cli.board.verify import verify, verify_steps
+    from scftc_cli.board.verify import toolchain_drift, verify, verify_steps
     from scftc_cli.distributed.runner import cluster
     from scftc_cli.errors import LeaderboardError
     from scftc_cli.evaluate import board_cells
+    from scftc_cli.records import numerical_stack
     from scftc_cli.spec import get_spec
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark, writing=False)
@@ -244,6 +245,9 @@ def verify_command(
             sample=sample,
             sample_key=sample_key,
         )
+    drift = toolchain_drift(board, numerical_stack())
+    if drift is not None:
+        stderr.print(f"[yellow]notice:[/yellow] {escape(drift)}", highlight=False, soft_wrap=True)
     for problem in report.board_problems:
         stderr.print(f"[red]not an extension of {escape(str(base))}:[/red] {escape(problem)}", soft_wrap=True)
     for name, problems in report.problems.items():

@@ -237,3 +237,23 @@ def test_leaderboard_command_shows_the_committed_board():
     doc = json.loads(result.stdout)
     assert Leaderboard.model_validate({k: v for k, v in doc.items() if k != "standings"}).version >= 1
     assert doc["standings"]["deployable"][0]["rank"] == 1
+
+
+def test_a_seal_records_its_numerical_stack(sealed_text: str):
+    from scftc_cli.records import numerical_stack
+
+    sealed = Leaderboard.model_validate_json(sealed_text).rounds[0]
+    assert sealed.status == "sealed" and sealed.toolchain == numerical_stack()
+    assert {"python", "machine", "numpy", "numba", "llvmlite", "scipy"} <= set(sealed.toolchain)
+
+
+@pytest.mark.slow
+def test_verify_names_a_numerical_stack_that_differs_from_the_seals(board: Path, small_registry: None):
+    assert "notice:" not in _verify(board).stderr  # the seal ran on this very stack
+    doc = json.loads(board.read_text())
+    doc["rounds"][0]["toolchain"]["numpy"] = "1.0.0"
+    board.write_text(json.dumps(doc, indent=1))
+    result = _verify(board)
+    assert result.exit_code == 0, result.output  # a notice, not a failure: no number moved
+    assert "notice: round 1 was sealed on another numerical stack (numpy 1.0.0 at the seal" in result.stderr
+    assert "constraints.txt" in result.stderr
