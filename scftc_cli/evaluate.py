@@ -141,7 +141,14 @@ def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout)
     truth = testbed(spec.version).truth(episodes)
     outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, truth)
     result = score_cell(
-        outcomes, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
+        outcomes,
+        cell.split,
+        cell.fault_class,
+        cell.sensor,
+        spec.confidence,
+        spec.steps,
+        spec.dt_s,
+        spec.gates.settled_deg,
     )
     return CellRun(cell, result, outcomes, episodes, trace=flown.traces.get(0))
 
@@ -323,7 +330,14 @@ def _evaluate_on_cluster(
             inspect.take(cell, [read[c] for c in own])
         merged = EpisodeOutcomes.concat([by_chunk[c] for c in own])
         result = score_cell(
-            merged, cell.split, cell.fault_class, cell.sensor, spec.confidence, spec.steps, spec.dt_s
+            merged,
+            cell.split,
+            cell.fault_class,
+            cell.sensor,
+            spec.confidence,
+            spec.steps,
+            spec.dt_s,
+            spec.gates.settled_deg,
         )
         runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt), traced[own[0]]))
     return runs

@@ -20,6 +20,7 @@ from pydantic import (
     model_serializer,
     model_validator,
 )
+from pydantic.json_schema import SkipJsonSchema
 
 from scftc_cli.spec import GATES
 
@@ -143,6 +144,13 @@ class CellResult(BaseModel):
         default=None, description="Settled episodes in each pointing window (versions with several)."
     )
     diagnosis: DiagnosisStats | None = None
+    settled_margin_deg: SkipJsonSchema[list[float] | None] = Field(
+        default=None,
+        exclude=True,
+        repr=False,
+        description="Each episode's largest dwell error minus the settled threshold (deg), fault-major: "
+        "kept in memory for the drift report of `leaderboard verify`, never written.",
+    )
 
     @model_serializer(mode="wrap")
     def _omit_absent(self, handler: SerializerFunctionWrapHandler) -> dict:

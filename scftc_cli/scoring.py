@@ -152,11 +152,16 @@ def score_cell(
     confidence: float = 0.95,
     steps: int = 0,
     dt_s: float = 0.0,
+    settled_deg: float | None = None,
 ) -> CellResult:
     """The scored cell of a batch's per-episode outcomes (with the by-fault statistics where the
     outcomes know each episode's fault, each window's settled count where there are several, and
-    the diagnosis where it is scored: ``steps`` and ``dt_s`` then say the episode's length)."""
+    the diagnosis where it is scored: ``steps`` and ``dt_s`` then say the episode's length). With
+    ``settled_deg``, each episode's distance from the settled gate rides along in memory
+    (``CellResult.settled_margin_deg``)."""
+    margin = None if settled_deg is None else (outcomes.dwell_max_error_deg - settled_deg).tolist()
     return CellResult(
+        settled_margin_deg=margin,
         split=split,
         fault_class=fault_class,
         sensor=sensor,

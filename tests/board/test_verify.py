@@ -257,3 +257,46 @@ def test_verify_names_a_numerical_stack_that_differs_from_the_seals(board: Path,
     assert result.exit_code == 0, result.output  # a notice, not a failure: no number moved
     assert "notice: round 1 was sealed on another numerical stack (numpy 1.0.0 at the seal" in result.stderr
     assert "constraints.txt" in result.stderr
+
+
+def _with_settled(cell, by_fault: list[int], margins: list[float] | None = None):
+    """``cell`` with its settled per-fault counts (and k) replaced, and per-episode margins."""
+    settled = cell.settled.model_copy(update={"by_fault": by_fault, "k": sum(by_fault)})
+    return cell.model_copy(update={"settled": settled, "settled_margin_deg": margins})
+
+
+def test_a_settled_count_that_moved_says_whether_the_gates_edge_explains_it():
+    """Verify names drift honestly: a count that moved by no more than the re-flown episodes lying
+    within ``EDGE_MARGIN_DEG`` of the gate in that fault is drift at the gate's edge; one that moved
+    where no episode was near the gate is a number no rounding explains. Both still fail."""
+    from scftc_cli.board.verify import EDGE_MARGIN_DEG
+
+    rerun = evaluate_cell(
+        lambda _c: make_controller("pd"), V1, Cell("test", "gain"), n_faults=3, n_seeds=2
+    ).result
+    assert rerun.settled_margin_deg is not None and len(rerun.settled_margin_deg) == 6
+    counts = list(rerun.settled.by_fault)
+    far = [1.0] * 6
+    near = [1.0, -0.5 * EDGE_MARGIN_DEG, 1.0, 1.0, 1.0, 1.0]  # episode 1, of fault 0, at the edge
+    moved = [counts[0] - 1 if counts[0] > 0 else 1, *counts[1:]]
+    edge = compare_cells([_with_settled(rerun, moved)], [_with_settled(rerun, counts, near)])
+    assert len(edge) == 1 and "drift at the gate's edge" in edge[0] and "episode 1 -0.0050 deg" in edge[0]
+    tampered = compare_cells([_with_settled(rerun, moved)], [_with_settled(rerun, counts, far)])
+    assert (
+        len(tampered) == 1 and "no rounding at the gate's edge explains it (fault 0: 1 moved" in tampered[0]
+    )
+    two = [counts[0] - 2 if counts[0] > 1 else counts[0] + 2, *counts[1:]]  # more than the one near
+    assert (
+        "no rounding" in compare_cells([_with_settled(rerun, two)], [_with_settled(rerun, counts, near)])[0]
+    )
+    assert (
+        "margins unavailable"
+        in compare_cells([_with_settled(rerun, moved)], [_with_settled(rerun, counts)])[0]
+    )
+
+
+def test_the_margins_stay_in_memory():
+    cell = evaluate_cell(lambda _c: make_controller("pd"), V1, Cell("test", "sign"), n_faults=2, n_seeds=1)
+    assert cell.result.settled_margin_deg is not None
+    assert "settled_margin_deg" not in cell.result.model_dump_json()
+    assert "settled_margin_deg" not in json.dumps(Leaderboard.model_json_schema())
