@@ -174,6 +174,20 @@ class SubmitOutcome:
     board: Leaderboard | None = None
 
 
+def _check_findable(path: Path, board_path: Path) -> None:
+    """A landing file must lie where the board finds its submissions (``find_submission_file``: inside
+    the folder that holds the board's folder, e.g. the repository), or the seal and every verify
+    would look for it in vain. A path problem is the operator's: refused before anything is
+    written, never recorded against the entry."""
+    root = board_path.resolve().parent.parent
+    if not path.resolve().is_relative_to(root):
+        where = default_submissions_dir(board_path)
+        raise UsageError(
+            f"{path} is outside {root}, where the board finds its submissions (by sha256, under "
+            f"{where}): copy it to {where}/<name>/ and submit the copy; nothing was written"
+        )
+
+
 def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = False) -> SubmitOutcome:
     """Validate a submission, fly it on the public draw, check it is deterministic, and (unless
     ``dry_run``) add it to the open round as a pending entry. A rejection writes nothing.
@@ -201,6 +215,7 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
             raise SubmissionRejected(
                 f"a landing run uses the pinned sandbox limits; {', '.join(raised)} is for --dry-run only"
             )
+        _check_findable(sub.path, board_path)
     why = sandbox_unavailable()
     if why is not None:
         raise SubmissionRejected(f"cannot score a submission without the sandbox: {why}")
@@ -357,6 +372,21 @@ def seal(
             f"{target.commitment[:16]}...); use the key that opened it, or abandon the round"
         )
     number = target.number
+    submissions_dir = submissions_dir or default_submissions_dir(board_path)
+    root = board_path.resolve().parent.parent
+    lost = [
+        e.name
+        for e in board.entries
+        if e.round == number
+        and e.status == "pending"
+        and e.kind == "submission"
+        and find_submission_file(e, submissions_dir, root) is None
+    ]
+    if lost:  # the operator's path, not the entries' fault: refuse before the first write
+        raise LeaderboardError(
+            f"the files of {', '.join(lost)} are not under {root} or {submissions_dir}, where the seal "
+            "finds submissions by sha256; commit them there or pass --submissions DIR (nothing was written)"
+        )
     if target.status == "open":
 
         def close(board: Leaderboard) -> Leaderboard:
@@ -371,8 +401,6 @@ def seal(
             return board
 
         board = update_board(board_path, benchmark, close)
-    submissions_dir = submissions_dir or default_submissions_dir(board_path)
-    root = board_path.resolve().parent.parent
     outcomes: dict[tuple[str, str], tuple[str, list[CellResult] | str]] = {}
     for entry in [e for e in board.entries if e.round == number and e.status == "pending"]:
         start = dt.datetime.now()

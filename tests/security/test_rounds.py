@@ -257,7 +257,9 @@ def test_a_landing_run_with_a_raised_limit_is_refused(tmp_path: Path, key_path: 
 def test_without_an_open_round_a_submission_says_who_opens_one(tmp_path: Path):
     board = _board_folder(tmp_path)
     store.update_board(board, V1.version, lambda b: b)
-    result = _invoke("submit", EXAMPLE, "--leaderboard", board)
+    mine = tmp_path / "submissions" / EXAMPLE.name
+    shutil.copy(EXAMPLE, mine)
+    result = _invoke("submit", mine, "--leaderboard", board)
     assert result.exit_code == 1
     assert "no round is open" in result.stderr and "scftc leaderboard open" in result.stderr
 
@@ -310,3 +312,40 @@ def test_land_submits_what_is_new_and_seals(tmp_path: Path, key_path: Path, monk
     assert result.exit_code == 0, result.output
     assert "already on the board" in result.stderr and "sealed round 1: 1 sealed, 0 failed" in result.stdout
     assert store.read_board(board, V1.version).entry("pd_plus").status == "sealed"  # type: ignore[union-attr]
+
+
+def test_a_file_outside_the_boards_tree_is_refused_before_anything_is_written(tmp_path: Path, key_path: Path):
+    """Issue: an honest file submitted from outside the board's folder tree landed pending, and the
+    seal then recorded it failed for ever ("not under .../submissions"). A path problem is the
+    operator's: refused before any write, with the fix, never recorded against the entry."""
+    board = _board_folder(tmp_path / "x")
+    assert _invoke("leaderboard", "open", "--leaderboard", board, "--key-file", key_path).exit_code == 0
+    before = board.read_bytes()
+    outside = tmp_path / "code" / "mine.py"
+    outside.parent.mkdir()
+    shutil.copy(EXAMPLE, outside)
+    for extra in ((), ("--seal", "--key-file", key_path)):
+        result = _invoke("submit", outside, "--leaderboard", board, *extra)
+        assert result.exit_code == 2, result.output
+        assert (
+            "is outside" in result.stderr and "copy it to" in result.stderr and "submissions" in result.stderr
+        )
+        assert len(result.stderr.strip().splitlines()) == 1
+        assert board.read_bytes() == before
+
+
+@pytest.mark.slow
+def test_a_seal_that_cannot_find_a_pending_file_writes_nothing(tmp_path: Path, key_path: Path):
+    board = _board_folder(tmp_path)
+    assert _invoke("leaderboard", "open", "--leaderboard", board, "--key-file", key_path).exit_code == 0
+    inside = tmp_path / "submissions" / "pd_plus" / "pd_plus.py"
+    inside.parent.mkdir()
+    shutil.copy(EXAMPLE, inside)
+    assert _invoke("submit", inside, "--leaderboard", board).exit_code == 0
+    inside.rename(tmp_path / "moved.py.txt")  # the operator's checkout lost it
+    before = board.read_bytes()
+    result = _invoke("leaderboard", "seal", "--leaderboard", board, "--key-file", key_path)
+    assert result.exit_code == 1, result.output
+    assert "pd_plus" in result.stderr and "nothing was written" in result.stderr
+    assert board.read_bytes() == before
+    assert [e.status for e in store.read_board(board, V1.version).entries] == ["pending"]
