@@ -469,23 +469,34 @@ def _stranded(board: Leaderboard) -> bool:
     )
 
 
-def abandon(board_path: Path, benchmark: str, reason: str, new_key: bytes) -> Leaderboard:
+def abandon(board_path: Path, benchmark: str, reason: str, new_key: bytes, by: str) -> Leaderboard:
     """Abandon every unsealed round (its secret is lost or must not be used; never revealed), open
     a new one under ``new_key``, and move their pending entries to it in a second write, so the new
     commitment precedes them on the board. Run again after a crash between the writes, it moves
-    the entries left behind."""
+    the entries left behind. ``by`` (who abandons) is recorded with the reason.
+
+    Refuses a ``new_key`` that opened one of the rounds it abandons: with the same key the new
+    round's secret would be known in advance to whoever knew the old one, and abandoning would only
+    re-roll the pending entries' sealed draws."""
     if not reason.strip():
         raise LeaderboardError("say why with --reason (it is kept in the board's history)")
+    if not by.strip():
+        raise LeaderboardError("say who abandons with --by (it is kept in the board's history)")
+    said = f"{reason.strip()} (abandoned by {by.strip()})"
 
     def drop(board: Leaderboard) -> Leaderboard:
         unsealed = [r for r in board.rounds if r.status in ("open", "closing")]
         if not unsealed:
             raise LeaderboardError(f"{board_path} has no open round to abandon")
         for r in unsealed:
-            r.status, r.reason, r.closed_board_version = "abandoned", reason.strip(), board.version + 1
-            board.history.append(
-                _event(board, "round-abandoned", f"round {r.number}", reason.strip(), r.number)
-            )
+            if commitment(round_secret(new_key, benchmark, r.number)) == r.commitment:
+                raise LeaderboardError(
+                    f"this key opened round {r.number}: abandoning needs a new key "
+                    "(`scftc leaderboard keygen PATH`), or the round can simply be sealed with it"
+                )
+        for r in unsealed:
+            r.status, r.reason, r.closed_board_version = "abandoned", said, board.version + 1
+            board.history.append(_event(board, "round-abandoned", f"round {r.number}", said, r.number))
         _open_next(board, new_key)
         return board
 

@@ -433,17 +433,24 @@ def land_command(
 def abandon_command(
     ctx: typer.Context,
     reason: Annotated[str, typer.Option(help="Why (kept in the board's history).")],
+    by: Annotated[str, typer.Option(help="Who abandons (kept in the board's history with the reason).")],
     leaderboard: BoardOption = None,
     benchmark: SubBenchmarkOption = None,
     key_file: KeyFileOption = None,
 ) -> None:
     """Abandon the unsealed rounds (their secret is lost or must not be used: never revealed) and
-    open a new one under the key given; their pending entries move to it."""
+    open a new one under a NEW key (the key of a round it abandons is refused); their pending
+    entries move to it, and each is listed."""
     from scftc_cli.board.ops import abandon
     from scftc_cli.board.rounds import read_key
+    from scftc_cli.board.store import read_board
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
-    board = abandon(board_path, bench, reason, read_key(key_file))
+    before = {e.name for e in read_board(board_path, bench).entries if e.status == "pending"}
+    board = abandon(board_path, bench, reason, read_key(key_file), by)
+    opened = board.rounds[-1].number
+    for name in sorted(before):
+        typer.echo(f"moved pending entry `{name}` to round {opened} (its sealed draw will be new)")
     _says_where(board_path, board.version, f"abandoned; round {board.rounds[-1].number} is open")
 
 

@@ -91,7 +91,7 @@ def committed_board(tmp_path: Path, key: Path) -> Path:
     path = tmp_path / "leaderboard" / "scftc-v1.json"
     path.parent.mkdir()
     shutil.copy(ROOT / "leaderboard" / "scftc-v1.json", path)
-    abandon(path, V1.version, "a private copy for this test", read_key(key))
+    abandon(path, V1.version, "a private copy for this test", read_key(key), "the test")
     return path
 
 

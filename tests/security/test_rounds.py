@@ -271,13 +271,19 @@ def test_an_abandoned_round_is_never_revealed_and_its_entries_move_on(tmp_path: 
     honest = board.parent.parent / "submissions" / "pd_plus.py"
     shutil.copy(EXAMPLE, honest)
     assert _invoke("submit", honest, "--leaderboard", board).exit_code == 0
+    abandon = ("leaderboard", "abandon", "--reason", "key lost", "--by", "Ada", "--leaderboard", board)
+    # the key of the round itself is refused: it would only re-roll the pending entries' draws
+    before = board.read_bytes()
+    result = _invoke(*abandon, "--key-file", key_path)
+    assert result.exit_code == 1 and "this key opened round 1" in result.stderr
+    assert board.read_bytes() == before
     new_key = write_key(tmp_path / "keys" / "new.key")
-    result = _invoke(
-        "leaderboard", "abandon", "--reason", "key lost", "--leaderboard", board, "--key-file", new_key
-    )
+    result = _invoke(*abandon, "--key-file", new_key)
     assert result.exit_code == 0, result.output
+    assert "moved pending entry `pd_plus` to round 2" in result.stdout
     state = store.read_board(board, V1.version)
     assert [(r.status, r.secret) for r in state.rounds] == [("abandoned", None), ("open", None)]
+    assert state.rounds[0].reason == "key lost (abandoned by Ada)"
     assert [(e.name, e.round, e.status) for e in state.entries] == [("pd_plus", 2, "pending")]
     # the lost key no longer seals anything; the new one seals round 2
     result = _invoke("leaderboard", "seal", "--leaderboard", board, "--key-file", key_path)
