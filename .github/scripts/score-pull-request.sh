@@ -6,23 +6,24 @@ set -euo pipefail
 base=${1:?usage: score-pull-request.sh BASE_REF}
 scftc=${SCFTC:-.venv/bin/scftc}
 report=${GITHUB_STEP_SUMMARY:-/dev/stdout}
-mapfile -t files < <(git diff --name-only --diff-filter=A "$base"...HEAD -- submissions/ | grep '\.py$' || true)
+# every path one way, whatever its characters (NUL-separated, never quoted), as `land` lists them
+mapfile -d '' -t files < <(git -c core.quotePath=false diff -z --name-only --diff-filter=A "$base"...HEAD -- submissions/)
+py=()
+for file in "${files[@]}"; do [[ $file == *.py ]] && py+=("$file"); done
 {
   echo "## Submissions in this pull request"
   echo
-  if [ ${#files[@]} -eq 0 ]; then echo "No new file under submissions/."; fi
+  echo "**Reported by the pull request, not trusted; the seal decides.** (This summary is written by the pull request's own checkout: docs/submitting.md.)"
+  echo
+  if [ ${#py[@]} -eq 0 ]; then echo "No new file under submissions/."; fi
 } >> "$report"
-# a board the pull request edits may only add pending entries to the base's
-for board in leaderboard/*.json; do
-  if ! git diff --quiet "$base"...HEAD -- "$board"; then
-    version=$(basename "$board" .json)
-    git show "$base:$board" > "/tmp/base-$version.json"
-    "$scftc" leaderboard verify --benchmark "$version" --base "/tmp/base-$version.json"
-    git checkout "$base" -- "$board"  # score on the base's board: the runner decides the numbers
-  fi
-done
+# a pull request may not change a board: the seal workflow is the only writer of leaderboard/
+if ! git diff --quiet "$base"...HEAD -- leaderboard/; then
+  echo "Rejected: this pull request edits leaderboard/; only the seal workflow writes the boards." >> "$report"
+  exit 1
+fi
 status=0
-for file in "${files[@]}"; do
+for file in "${py[@]}"; do
   echo "### \`$file\`" >> "$report"
   if "$scftc" submit "$file" > /tmp/submit.out 2> /tmp/submit.err; then
     { echo '```'; cat /tmp/submit.out; echo '```'; } >> "$report"
