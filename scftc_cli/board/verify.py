@@ -35,7 +35,7 @@ from scftc_cli.board.flights import (
     score_submission,
     steps_per_entry,
 )
-from scftc_cli.board.models import Entry, Leaderboard
+from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
 from scftc_cli.board.rounds import sealed_salt
 from scftc_cli.board.store import default_submissions_dir, read_board
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
@@ -82,14 +82,73 @@ def chain_problems(board: Leaderboard) -> dict[str, list[str]]:
     return problems
 
 
+ROUND_STATE = {
+    "round-opened": "open",
+    "round-closed": "closing",
+    "round-sealed": "sealed",
+    "round-abandoned": "abandoned",
+}
+"""The status a round must have when the given event is the last one its history records of it."""
+
+
+def history_problems(board: Leaderboard) -> list[str]:
+    """History events the board's state does not bear out: the last event recorded of each entry
+    name and each round must say what the board holds now (an entry ``removed`` is not live, one
+    ``sealed`` or ``failed`` in round r is so in round r, one ``added`` or ``moved`` is live; a
+    round's last event matches its status). Every command writes its event and its state together,
+    so a hand-appended event (a competitor "removed", a sealed entry "failed", an open round
+    "abandoned") contradicts the state it claims to describe."""
+    last: dict[str, BoardEvent] = {}
+    rounds: dict[int, BoardEvent] = {}
+    for event in board.history:
+        if event.action in ROUND_STATE and event.round is not None:
+            rounds[event.round] = event
+        elif event.action not in ROUND_STATE:
+            last[event.name] = event
+    out = []
+    for number, event in rounds.items():
+        status = board.rounds[number - 1].status if number <= len(board.rounds) else None
+        if status != ROUND_STATE[event.action]:
+            out.append(f"the history's last word on round {number} is `{event.action}`, but it is {status}")
+    by_name: dict[str, list[Entry]] = {}
+    for e in board.entries:
+        by_name.setdefault(e.name, []).append(e)
+    for name, event in last.items():
+        entries = by_name.get(name, [])
+        now = ", ".join(f"{e.status} in round {e.round}" for e in entries) or "not on the board"
+        if event.action == "removed" and any(
+            e.status != "failed" and e.added_board_version < event.board_version for e in entries
+        ):
+            out.append(f"the history says {name} was removed ({event.reason!r}), but it is {now}")
+        elif event.action in ("sealed", "failed") and not any(
+            e.status == event.action and e.round == event.round for e in entries
+        ):
+            out.append(f"the history says {name} {event.action} in round {event.round}, but it is {now}")
+        elif event.action in ("added", "moved") and not entries:
+            out.append(f"the history says {name} was {event.action}, but it is not on the board")
+    return out
+
+
 def extends_problems(base: Leaderboard, board: Leaderboard) -> list[str]:
     """What ``board`` changed of the trusted ``base`` beyond adding pending entries (empty: it only
-    adds pending entries, or is ``base`` itself)."""
+    adds pending entries, or is ``base`` itself): the only history it may append is the ``added``
+    event ``scftc submit`` records with each new pending entry."""
     out = []
     if board.rounds != base.rounds:
         out.append("its rounds differ from the trusted board's (only a maintainer's seal changes rounds)")
     if board.history[: len(base.history)] != base.history:
         out.append("it rewrites history the trusted board already holds")
+    new_pending = {
+        (e.name, e.round, e.added_board_version)
+        for e in board.entries
+        if e.status == "pending" and not any(b.name == e.name for b in base.entries)
+    }
+    for event in board.history[len(base.history) :]:
+        if event.action != "added" or (event.name, event.round, event.board_version) not in new_pending:
+            out.append(
+                f"it appends a `{event.action}` event ({event.name}): beyond the trusted board only "
+                "`scftc submit`'s new pending entries may be added"
+            )
     kept = {(e.name, e.status, e.round): e for e in board.entries}
     for e in base.entries:
         if kept.get((e.name, e.status, e.round)) != e:
@@ -192,12 +251,13 @@ class VerifyReport:
     board: Leaderboard
     problems: dict[str, list[str]] = field(default_factory=dict)  # entry name -> what is wrong
     board_problems: list[str] = field(default_factory=list)  # against the trusted board
+    history_problems: list[str] = field(default_factory=list)  # events the state does not bear out
     fixes_by_name: dict[str, str] = field(default_factory=dict)
     checked: int = 0
 
     @property
     def ok(self) -> bool:
-        return not self.problems and not self.board_problems
+        return not self.problems and not self.board_problems and not self.history_problems
 
     def fixes(self) -> list[str]:
         """One suggested fix per entry that failed, fitting its kind and its problem."""
@@ -265,6 +325,7 @@ def verify(
         if board.entry(name) is None:
             report.problems[name] = ["registered built-in controller missing from the board"]
     chain = chain_problems(board)
+    report.history_problems = history_problems(board)
     full = replace(scoring, n_faults=None, n_seeds=None)
 
     def scoring_of(entry: Entry) -> Scoring:

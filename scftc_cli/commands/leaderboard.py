@@ -248,6 +248,8 @@ def verify_command(
     drift = toolchain_drift(board, numerical_stack())
     if drift is not None:
         stderr.print(f"[yellow]notice:[/yellow] {escape(drift)}", highlight=False, soft_wrap=True)
+    for problem in report.history_problems:
+        stderr.print(f"[red]problem:[/red] history: {escape(problem)}", highlight=False, soft_wrap=True)
     for problem in report.board_problems:
         stderr.print(f"[red]not an extension of {escape(str(base))}:[/red] {escape(problem)}", soft_wrap=True)
     for name, problems in report.problems.items():
