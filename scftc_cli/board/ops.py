@@ -41,7 +41,7 @@ from scftc_cli.errors import LeaderboardError, ScftcError, SubmissionRejected, U
 from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, numerical_stack
 from scftc_cli.registry import builtin_names, registry
-from scftc_cli.submission.isolation import sandbox_unavailable
+from scftc_cli.submission.isolation import require_caps, sandbox_unavailable
 from scftc_cli.submission.manifest import Submission, load_submission
 from scftc_cli.submission.wire import one_line
 from scftc_cli.versions import published_names
@@ -188,7 +188,15 @@ def _check_findable(path: Path, board_path: Path) -> None:
         )
 
 
-def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = False) -> SubmitOutcome:
+def submit(
+    path: Path,
+    board_path: Path,
+    scoring: Scoring,
+    *,
+    dry_run: bool = False,
+    allow_uncapped: bool = False,
+    warn: Callable[[str], None] | None = None,
+) -> SubmitOutcome:
     """Validate a submission, fly it on the public draw, check it is deterministic, and (unless
     ``dry_run``) add it to the open round as a pending entry. A rejection writes nothing.
 
@@ -219,6 +227,11 @@ def submit(path: Path, board_path: Path, scoring: Scoring, *, dry_run: bool = Fa
     why = sandbox_unavailable()
     if why is not None:
         raise SubmissionRejected(f"cannot score a submission without the sandbox: {why}")
+    if allow_uncapped and not dry_run:
+        raise UsageError("--allow-uncapped is for --dry-run only: a landing run needs every cap")
+    warning = require_caps(allow_uncapped)  # a landing run refuses an uncapped host outright
+    if warning is not None and warn is not None:
+        warn(warning)
     board = read_board(board_path, benchmark, missing_ok=dry_run)
     _check_name_free(sub, board, board_path)
     if not dry_run and board.open_round is None:
@@ -382,6 +395,8 @@ def seal(
         and e.kind == "submission"
         and find_submission_file(e, submissions_dir, root) is None
     ]
+    if any(e.round == number and e.status == "pending" and e.kind == "submission" for e in board.entries):
+        require_caps()  # the host's caps, not the entries' fault: refuse before the first write
     if lost:  # the operator's path, not the entries' fault: refuse before the first write
         raise LeaderboardError(
             f"the files of {', '.join(lost)} are not under {root} or {submissions_dir}, where the seal "

@@ -163,6 +163,13 @@ def error_line(message: str) -> None:
     stderr.print(f"[red]error:[/red] {escape(terminal_safe(message))}", highlight=False, soft_wrap=True)
 
 
+def warning_line(message: str) -> None:
+    """One loud ``warning`` line on stderr, in bold red (sanitized like ``error_line``)."""
+    from scftc_cli.submission.wire import terminal_safe
+
+    stderr.print(f"[bold red]{escape(terminal_safe(message))}[/bold red]", highlight=False, soft_wrap=True)
+
+
 def note_line(message: str) -> None:
     """One ``note: ...`` line on stderr (sanitized like ``error_line``)."""
     from scftc_cli.submission.wire import terminal_safe

@@ -16,6 +16,7 @@ from scftc_cli.commands.common import (
     caps_notice,
     exits_cleanly,
     progress_bar,
+    warning_line,
 )
 from scftc_cli.submission.limits import SandboxLimits
 
@@ -46,6 +47,14 @@ def submit_command(
         Path | None,
         typer.Option("--key-file", help="The round key, with --seal.", show_default=False),
     ] = None,
+    allow_uncapped: Annotated[
+        bool,
+        typer.Option(
+            "--allow-uncapped",
+            help="--dry-run only: run even where this host cannot cap the sandbox's threads or kernel "
+            "memory (no cgroup), with a warning; a landing run always refuses.",
+        ),
+    ] = False,
     n_faults: Annotated[
         int | None, typer.Option(help="Faults per cell, --dry-run only [default: 50].", min=1)
     ] = None,
@@ -91,7 +100,14 @@ def submit_command(
     caps_notice()
     total = steps_per_entry(scoring, draws=1) + spec.steps  # the public draw and one cell again
     with progress_bar(f"{file.name} on {spec.version}", total) as progress:
-        outcome = submit(file, board_path, replace(scoring, progress=progress), dry_run=dry_run)
+        outcome = submit(
+            file,
+            board_path,
+            replace(scoring, progress=progress),
+            dry_run=dry_run,
+            allow_uncapped=allow_uncapped,
+            warn=warning_line,
+        )
     public = {c.fault_class: c for c in outcome.public if c.sensor is None}
     typer.echo("public draw:  " + "  ".join(f"{c} {pct(public[c].settled)}" for c in spec.fault_classes))
     if outcome.entry is None or outcome.board is None:

@@ -122,6 +122,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from scftc_cli import PINNED_NUMERICS
+from scftc_cli.errors import SubmissionRejected
 from scftc_cli.submission import cgroups
 from scftc_cli.submission.limits import SandboxLimits
 
@@ -464,34 +465,63 @@ def sandbox_unavailable(refresh: bool = False) -> str | None:
     return _probe()[1]
 
 
-def caps_missing() -> str | None:
-    """``None`` when every cap of the sandbox holds here; otherwise ONE line naming what is not
-    capped on this host, why, and the fix (for the command line to print as a notice).
+def running_as_root() -> bool:
+    """Whether this process runs as uid 0, whose tasks ``RLIMIT_NPROC`` does not count."""
+    return os.geteuid() == 0
+
+
+def uncapped() -> tuple[list[str], str]:
+    """What a submission's run could take from this host without a bound, and the one-line fix
+    (``([], "")`` when every cap holds).
 
     Without a memory cgroup, memory outside the address space (kernel memory: page tables, pipe
     buffers, thread stacks) is bounded only indirectly, by the open-file and process limits.
     Without a pids cgroup, ``RLIMIT_NPROC`` caps threads, except where bubblewrap runs as root (an
-    interpreter not readable by others, see ``sandbox_uid``): the kernel exempts uid 0. Without a
-    cpu cgroup the run is pinned to ``ceil(cpus)`` CPUs, which is a cap and is not reported.
+    interpreter not readable by others, see ``sandbox_uid``): the kernel exempts uid 0, so as root
+    with neither a pids cgroup nor a readable interpreter nothing bounds the run's threads. Without
+    a cpu cgroup the run is pinned to ``ceil(cpus)`` CPUs, which is a cap and is not reported.
     """
     found = cgroups.support()
-    uncapped, fixes = [], []
+    root = running_as_root()
+    what, fixes = [], []
     if "memory" in found.missing:
-        uncapped.append("its kernel memory beyond the address-space limit (no memory cgroup)")
-    if "pids" in found.missing and os.geteuid() == 0 and sandbox_uid() is None:
-        uncapped.append("its processes and threads (no pids cgroup, and RLIMIT_NPROC does not bind root)")
+        what.append("its kernel memory beyond the address-space limit (no memory cgroup)")
+    if "pids" in found.missing and root and sandbox_uid() is None:
+        what.append("its processes and threads (no pids cgroup, and RLIMIT_NPROC does not bind root)")
         fixes.append("make the interpreter readable by others, so that the sandbox runs as nobody")
-    if not uncapped:
-        return None
-    if os.geteuid() == 0:
+    if not what:
+        return [], ""
+    if root:
         fixes.insert(0, "mount the cgroup file system read-write for this process")
     else:
         delegated = "systemd-run --user --scope -p Delegate=yes scftc ..."
         fixes.insert(0, f"run scftc as root or in a delegated cgroup ({delegated})")
-    return (
-        f"note: the submission sandbox cannot cap {' nor '.join(uncapped)} on this host "
-        f"({found.reason}); to fix it, {', or '.join(fixes)}"
-    )
+    return what, f"({found.reason}); to fix it, {', or '.join(fixes)}"
+
+
+def caps_missing() -> str | None:
+    """``None`` when every cap of the sandbox holds here; otherwise ONE line naming what is not
+    capped on this host, why, and the fix (for the command line to print as a notice)."""
+    what, fix = uncapped()
+    if not what:
+        return None
+    return f"note: the submission sandbox cannot cap {' nor '.join(what)} on this host {fix}"
+
+
+def require_caps(allow_uncapped: bool = False) -> str | None:
+    """Refuse (``SubmissionRejected``, naming the fix) to run untrusted code for the record on a
+    host where a cap does not hold: a landing or sealing run must not let a thread bomb or a
+    kernel-memory flood reach the host. With ``allow_uncapped`` (a dry run's opt-in), return the
+    loud warning to print instead; ``None`` when every cap holds."""
+    what, fix = uncapped()
+    if not what:
+        return None
+    said = f"this host cannot cap a submission's {' nor '.join(what)} {fix}"
+    if not allow_uncapped:
+        raise SubmissionRejected(
+            f"{said}; landing and sealing refuse to run uncapped (a --dry-run may, with --allow-uncapped)"
+        )
+    return f"WARNING: running a submission UNCAPPED: {said}"
 
 
 def sandbox_uid() -> int | None:

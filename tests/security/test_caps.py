@@ -509,3 +509,59 @@ def test_the_run_group_of_a_killed_parent_is_swept_by_the_next(tmp_path: Path):
     finally:
         ours.remove()
     assert not any(p.exists() for p in ours.paths)
+
+
+def test_without_caps_a_landing_or_seal_refuses_and_a_dry_run_needs_the_opt_in(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Issue: as root with no usable cgroup, a thread bomb made 4 000 threads in a dry run and in
+    a landing submit, with only a notice printed. Now, where the pids and memory caps cannot hold,
+    a landing run and a seal refuse before anything is written; a dry run needs --allow-uncapped
+    and says loudly that it runs uncapped."""
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from scftc_cli.board.rounds import write_key
+    from scftc_cli.commands.app import app
+
+    monkeypatch.setattr(cgroups, "support", lambda: cgroups.Support({}, "no cgroup for this test"))
+    monkeypatch.setattr(isolation, "running_as_root", lambda: True)  # whose threads RLIMIT_NPROC ignores
+    monkeypatch.setattr(isolation, "sandbox_uid", lambda: None)
+    runner = CliRunner()
+    root = tmp_path / "repo"
+    (root / "leaderboard").mkdir(parents=True)
+    board = root / "leaderboard" / "scftc-v1.json"
+    mine = root / "submissions" / "pd_plus.py"
+    mine.parent.mkdir()
+    shutil.copy(Path(__file__).resolve().parents[2] / "submissions" / "example_pd_plus" / "pd_plus.py", mine)
+    key = write_key(tmp_path / "keys" / "k")
+    assert (
+        runner.invoke(
+            app, ["leaderboard", "open", "--leaderboard", str(board), "--key-file", str(key)]
+        ).exit_code
+        == 0
+    )
+    before = board.read_bytes()
+    for extra in ((), ("--seal", "--key-file", str(key))):
+        result = runner.invoke(app, ["submit", str(mine), "--leaderboard", str(board), *extra])
+        assert result.exit_code == 1, result.output
+        assert "processes and threads" in result.stderr and "kernel memory" in result.stderr
+        assert "landing and sealing refuse to run uncapped" in result.stderr
+        assert board.read_bytes() == before
+    tiny = ("--dry-run", "--n-faults", "1", "--n-seeds", "1", "--leaderboard", str(board))
+    result = runner.invoke(app, ["submit", str(mine), *tiny])
+    assert result.exit_code == 1 and "--allow-uncapped" in result.stderr
+    result = runner.invoke(app, ["submit", str(mine), *tiny, "--allow-uncapped"])
+    assert result.exit_code == 0, result.output
+    assert "WARNING: running a submission UNCAPPED" in result.stderr
+    # a seal of a round holding a pending submission refuses too, before its first write
+    monkeypatch.undo()
+    assert runner.invoke(app, ["submit", str(mine), "--leaderboard", str(board)]).exit_code == 0
+    monkeypatch.setattr(cgroups, "support", lambda: cgroups.Support({}, "no cgroup for this test"))
+    monkeypatch.setattr(isolation, "running_as_root", lambda: True)
+    monkeypatch.setattr(isolation, "sandbox_uid", lambda: None)
+    pending = board.read_bytes()
+    result = runner.invoke(app, ["leaderboard", "seal", "--leaderboard", str(board), "--key-file", str(key)])
+    assert result.exit_code == 1 and "refuse to run uncapped" in result.stderr
+    assert board.read_bytes() == pending
