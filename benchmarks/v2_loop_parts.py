@@ -7,9 +7,10 @@ Flies ``pd`` through ``--steps`` steps of ``--batch`` held-out episodes (as
 ``benchmarks/v2_throughput.py``) with every kernel on one thread, and times each part of every step with the
 process's CPU clock (``time.process_time``), which, unlike the wall clock, a busy second core does
 not stretch much: this 2-core machine is shared with other jobs. Parts: the sensors (``observe``:
-one numba pass that also draws the noise; and ``observe_reference``, the numpy definition drawing
-from numpy's generators, on a second sensors object fed the same plant), the controller's ``act``,
-the fused plant step and the numpy reference plant (a second plant given the same commands).
+one numba pass that also draws the noise; and ``observe_reference``, its numpy form drawing from
+numpy's generators, ``tests/oracles/v2_sensors.py``, on a second sensors object fed the same
+plant), the controller's ``act``, the fused plant step and the numpy reference plant (a second
+plant given the same commands).
 Reported as nanoseconds per episode-step, best of ``--repeats`` runs, with the ratios fused /
 reference; ``loop_serial`` is what one core would give the fused loop (sensors + controller + plant),
 in env-steps per CPU-second.
@@ -33,7 +34,10 @@ from scftc_cli.versions.v2.sim import fast, sensors
 from scftc_cli.versions.v2.spec import V2
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.oracles
 from v2_throughput import tiled_episodes  # the same episodes
+
+from tests.oracles import v2_sensors as oracle
 
 PARTS = ("observe", "observe_reference", "act", "plant", "plant_reference")
 
@@ -56,7 +60,7 @@ def one_run(n: int, steps: int) -> dict[str, float]:
 
     for k in range(steps):
         obs = timed("observe", fused.observe, k, plant)
-        timed("observe_reference", reference.observe_reference, k, plant)
+        timed("observe_reference", oracle.observe, reference, k, plant)
         command = np.clip(timed("act", controller.act, obs), -1.0, 1.0)
         timed("plant_reference", plant_ref.step, k, command)
         timed("plant", plant.step, k, command)

@@ -4,7 +4,7 @@ Times env-steps per second (episodes x steps / wall seconds) of the fused kernel
 (``MissionFastPlant.step``, the target error included), of the kernel plus the sensors
 (``observe`` then ``step``, as a rollout calls them), and of the whole loop with ``pd`` flying:
 its compiled law (``controllers/fused.py``) and, in the same run, its numpy definition
-(``MissionLaw.act_reference``), with their ratio. Pinned ``train`` episodes of every class tiled
+(``tests/oracles/v3_analytic.py``), with their ratio. Pinned ``train`` episodes of every class tiled
 to ``--n``, after a warm-up step (numba compiles or loads its cache first). The load average is
 printed beside each figure: on a shared machine other processes move the numbers.
 """
@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
+from functools import partial
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +25,9 @@ from scftc_cli.versions.v3.controllers import fused
 from scftc_cli.versions.v3.controllers import law as numpy_law
 from scftc_cli.versions.v3.controllers.analytic import PD
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.oracles
+from tests.oracles import v3_analytic as oracle
 
 
 def _load() -> str:
@@ -70,7 +76,7 @@ def main() -> None:
     for law in ("compiled", "numpy"):
         plant, sensors, controller = bed.plant(batch), bed.sensors(batch), PD()
         controller.reset(batch.n, bed.context(batch, privileged=False))
-        act = controller.act if law == "compiled" else controller.act_reference
+        act = controller.act if law == "compiled" else partial(oracle.act, controller)
         # the numpy run's demand hook on law.py's numpy function too
         fused.rate_limited_demand = compiled_demand if law == "compiled" else numpy_law.rate_limited_demand
         plant.step(0, act(sensors.observe(0, plant)))

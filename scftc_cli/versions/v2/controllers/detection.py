@@ -54,10 +54,9 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
-from scftc_cli.sim.products import chain3, matmul, split_dot3
+from scftc_cli.sim.products import chain3, split_dot3
 from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import clip, inverse3
-from scftc_cli.versions.v2.controllers.mekf import inv3
 
 
 @dataclass(frozen=True)
@@ -106,9 +105,25 @@ def friction_shape(
     dt_s: float,
     iterations: int = 8,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``friction_shape_reference`` (its definition, below) as one numba pass over the wheels (rows
-    of ``sim/rows.run_rows``): the same floating-point operations in the same order, so the same
-    bits; ``(n, m)`` arrays in, ``(shape, mean_speed, exact)`` ``(n, m)`` out."""
+    """How the plant's RK4 step averaged the friction over a step, from the wheel speeds at its two
+    ends (rad/s, ``(n, m)``) and a Coulomb level ``fC`` (N m, the current estimate); returns
+    ``(shape, mean_speed, exact)`` ``(n, m)``.
+
+    The plant evaluates the friction ``fr(Omega) = -fC clip(Omega / wLC, -1, 1) - cV Omega`` at the
+    four RK4 stages, so the torque the tachometers measure over the step holds the weighted mean
+    ``-fC shape - cV mean_speed`` of the stages, ``shape = sum_i w_i clip(Omega_i / wLC)`` and
+    ``mean_speed = sum_i w_i Omega_i`` with weights (1, 2, 2, 1) / 6. Outside the linear zone the
+    shape is ``sign(Omega)``; inside it the speed relaxes within the step (at 60 fC0 faster than
+    the step), and near its edge the stages straddle it, where the mean of the two ends is off by
+    tens of noise levels. The stages follow from the speed at the start and the torque ``e`` held
+    over the step (motor plus the hub's reaction, taken constant); ``e`` is the root of the RK4
+    map ``Omega_end(e) = end``, monotone and piecewise linear in ``e``, found by Newton's method
+    (``iterations`` steps at most, stopping early at a fixed point). ``exact`` is false where it
+    did not converge (the sample is then skipped).
+
+    One numba pass over the wheels (rows of ``sim/rows.run_rows``; tests/oracles/v2_detection.py
+    holds a readable numpy form, the same bits).
+    """
     start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
     coulomb = np.broadcast_to(np.asarray(coulomb_nm, dtype=np.float64), start.shape)
     shape, mean_speed, exact = np.empty_like(start), np.empty_like(start), np.empty(start.shape, bool)
@@ -138,7 +153,7 @@ def _clip_unit(x: float) -> float:  # pragma: no cover - compiled
 
 @numba.njit(inline="always")
 def _shape_friction(speed, coulomb, w, cv):  # pragma: no cover - compiled
-    """``friction(speed)`` of ``friction_shape_reference`` for one wheel: ``(value, slope)``."""
+    """The friction ``fr(speed)`` of one wheel and its slope in ``speed``: ``(value, slope)``."""
     value = -coulomb * _clip_unit(speed / w) - cv * speed
     slope = (-coulomb / w if abs(speed) < w else 0.0) - cv
     return value, slope
@@ -146,8 +161,9 @@ def _shape_friction(speed, coulomb, w, cv):  # pragma: no cover - compiled
 
 @numba.njit(inline="always")
 def _shape_rk4(e, start, end, coulomb, js, w, cv, dt):  # pragma: no cover - compiled
-    """``rk4(e)`` of ``friction_shape_reference`` for one wheel: ``(miss, its slope, the four
-    stage speeds)``, the stages unrolled (weights 1, 2, 2, 1; steps dt/2, dt/2, dt)."""
+    """The RK4 step of one wheel from ``start`` under the held torque ``e``: ``(miss`` (the end
+    speed less ``end``), ``its slope in e, the four stage speeds)``, the stages unrolled (weights 1,
+    2, 2, 1; steps dt/2, dt/2, dt)."""
     h = 0.5 * dt
     s0 = start
     v, sl = _shape_friction(s0, coulomb, w, cv)
@@ -174,7 +190,7 @@ def _shape_rk4(e, start, end, coulomb, js, w, cv, dt):  # pragma: no cover - com
 
 @numba.njit(inline="always")
 def _shape_row(a, b, c, js, w, cv, dt, iterations):  # pragma: no cover - compiled
-    """``friction_shape_reference`` of one wheel: the speeds ``a`` and ``b`` at the step's ends,
+    """``friction_shape`` of one wheel: the speeds ``a`` and ``b`` at the step's ends,
     the Coulomb level ``c``; returns ``(shape, mean_speed, exact)``."""
     e = js * (b - a) / dt - _shape_friction(0.5 * (a + b), c, w, cv)[0]
     for _ in range(iterations):
@@ -203,95 +219,19 @@ def _friction_shape(
         )
 
 
-def friction_shape_reference(
-    start: np.ndarray,
-    end: np.ndarray,
-    coulomb_nm: np.ndarray,
-    wheels: WheelKnowledge,
-    dt_s: float,
-    iterations: int = 8,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """How the plant's RK4 step averaged the friction over a step, from the wheel speeds at its two
-    ends (rad/s, ``(n, m)``) and a Coulomb level ``fC`` (N m, the current estimate); returns
-    ``(shape, mean_speed, exact)``.
-
-    The plant evaluates the friction ``fr(Omega) = -fC clip(Omega / wLC, -1, 1) - cV Omega`` at the
-    four RK4 stages, so the torque the tachometers measure over the step holds the weighted mean
-    ``-fC shape - cV mean_speed`` of the stages, ``shape = sum_i w_i clip(Omega_i / wLC)`` and
-    ``mean_speed = sum_i w_i Omega_i`` with weights (1, 2, 2, 1) / 6. Outside the linear zone the
-    shape is ``sign(Omega)``; inside it the speed relaxes within the step (at 60 fC0 faster than
-    the step), and near its edge the stages straddle it, where the mean of the two ends is off by
-    tens of noise levels. The stages follow from the speed at the start and the torque ``e`` held
-    over the step (motor plus the hub's reaction, taken constant); ``e`` is the root of the RK4
-    map ``Omega_end(e) = end``, monotone and piecewise linear in ``e``, found by Newton's method.
-    ``exact`` is false where it did not converge (the sample is then skipped).
-    """
-    js, w, cv = wheels.spin_inertia_kgm2, wheels.omega_linear_rad_s, wheels.viscous_nms
-    weights = (1.0, 2.0, 2.0, 1.0)
-    steps = (0.5 * dt_s, 0.5 * dt_s, dt_s)
-
-    def friction(speed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        inside = np.abs(speed) < w
-        value = -coulomb_nm * np.clip(speed / w, -1.0, 1.0) - cv * speed
-        return value, np.where(inside, -coulomb_nm / w, 0.0) - cv
-
-    def rk4(e: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
-        speed, slope_e = start, np.zeros_like(start)
-        total, total_e, stages = np.zeros_like(start), np.zeros_like(start), []
-        for i, weight in enumerate(weights):
-            stages.append(speed)
-            value, slope = friction(speed)
-            k = (e + value) / js
-            k_e = (1.0 + slope * slope_e) / js
-            total, total_e = total + weight * k, total_e + weight * k_e
-            if i < 3:
-                speed, slope_e = start + steps[i] * k, steps[i] * k_e
-        return start + dt_s / 6.0 * total - end, dt_s / 6.0 * total_e, stages
-
-    e = js * (end - start) / dt_s - friction(0.5 * (start + end))[0]
-    for _ in range(iterations):
-        miss, slope, _ = rk4(e)
-        e = e - miss / slope
-    miss, _, stages = rk4(e)
-    shape, mean_speed = np.zeros_like(start), np.zeros_like(start)
-    for weight, stage in zip(weights, stages, strict=True):
-        shape = shape + weight * np.clip(stage / w, -1.0, 1.0)
-        mean_speed = mean_speed + weight * stage
-    return shape / 6.0, mean_speed / 6.0, np.abs(miss) < 1e-9
-
-
 LOWER = np.array([-3.0, -1.0, 0.0])
 UPPER = np.array([3.0, 1.0, 0.5])
 """Physical bounds on ``(g, b, c)``: the estimate is clamped into them, so that a fit on a few
 nearly collinear samples right after a change cannot run away (friction is never negative)."""
 
 
-def clamp(theta: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``theta`` ``(..., 3)`` pulled into ``[LOWER, UPPER]`` one component at a time, the others
-    moved to their conditional mean given it (Gaussian conditioning on ``cov`` ``(..., 3, 3)``), so
-    that what the data fix well (e.g. the lumped offset ``b - c s``) survives a clamped split."""
-    for j in (2, 0, 1):
-        clipped = np.clip(theta[..., j], LOWER[j], UPPER[j])
-        var = cov[..., j, j]
-        move = (clipped != theta[..., j]) & (var > 1e-18)  # a pinned component moves nothing
-        if move.any():
-            column = cov[..., :, j]
-            scale = np.where(move, (clipped - theta[..., j]) / np.where(move, var, 1.0), 0.0)
-            theta = theta + column * scale[..., None]
-            conditioned = (
-                cov - column[..., :, None] * column[..., None, :] / np.where(move, var, 1.0)[..., None, None]
-            )
-            cov = np.where(move[..., None, None], conditioned, cov)
-        theta[..., j] = clipped
-    return theta, cov
-
-
 def solved(
     A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``solved_reference`` compiled, its bits: the ridge solve of every wheel in one pass
-    (``_solve_rows``), then ``clamped``. ``(..., 3, 3)``, ``(..., 3)`` in; ``(theta (..., 3),
-    cov (..., 3, 3))`` out."""
+    """``(theta, cov)`` ``((..., 3), (..., 3, 3))`` of the ridge fit ``(A + diag(w))^-1 (y + w
+    prior)`` (``A`` ``(..., 3, 3)``, the others ``(..., 3)``), clamped into the physical bounds:
+    the solve of every wheel in one compiled pass (``_solve_rows``), then ``clamped``
+    (tests/oracles/v2_detection.py holds a readable numpy form, the same bits)."""
     shape = np.shape(y)
     rows = math.prod(shape[:-1])
     theta, cov = np.empty((rows, 3)), np.empty((rows, 3, 3))
@@ -305,12 +245,18 @@ def solved(
 
 
 def clamped(theta: np.ndarray, cov: np.ndarray) -> None:
-    """``clamp`` compiled, in place on ``theta`` ``(rows, 3)`` and ``cov`` ``(rows, 3, 3)``
-    (C-ordered float64), its bits: one component at a time, a pass that clips and decides which
-    rows move (``_clamp_rows``), then one that moves them (``_pin_rows``). The passes stay apart
-    because the numpy form moves the rows a component does not pin too (by ``column * 0.0``, which
-    turns a -0.0 into +0.0 and an infinite estimate into NaN) whenever it pins that component of
-    any row of the batch: each pass learns from the one before whether any row moved."""
+    """``theta`` ``(rows, 3)`` pulled into ``[LOWER, UPPER]`` one component at a time (2, 0, 1),
+    the others moved to their conditional mean given it (Gaussian conditioning on ``cov``
+    ``(rows, 3, 3)``), so that what the data fix well (e.g. the lumped offset ``b - c s``) survives
+    a clamped split; in place (C-ordered float64). A component whose variance is below 1e-18 is
+    pinned and moves nothing.
+
+    Per component, a compiled pass that clips and decides which rows move (``_clamp_rows``), then
+    one that moves them (``_pin_rows``). The passes stay apart because the numpy form
+    (tests/oracles/v2_detection.py) moves the rows a component does not pin too (by
+    ``column * 0.0``, which turns a -0.0 into +0.0 and an infinite estimate into NaN) whenever it
+    pins that component of any row of the batch: each pass learns from the one before whether any
+    row moved."""
     rows = len(theta)
     parallel = rows >= HEAVY_PARALLEL_MIN_BATCH
     clipped, move = np.empty(rows), np.zeros(rows, dtype=np.bool_)
@@ -359,7 +305,7 @@ def _clamp_rows(theta, cov, j, low, high, clipped, move):  # pragma: no cover - 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _pin_rows(theta, cov, j, clipped, move, moved):  # pragma: no cover - compiled
-    """``clamp``'s step for component ``j`` given ``_clamp_rows``' verdicts: where any row of the
+    """``clamped``'s step for component ``j`` given ``_clamp_rows``' verdicts: where any row of the
     batch ``moved``, every row's estimate takes ``column * scale`` (``scale`` 0.0 where it does not
     move) and a moving row's covariance is conditioned; then component ``j`` is the clipped one."""
     for r in numba.prange(theta.shape[0]):
@@ -378,16 +324,6 @@ def _pin_rows(theta, cov, j, clipped, move, moved):  # pragma: no cover - compil
         theta[r, j] = clipped[r]
 
 
-def solved_reference(
-    A: np.ndarray, y: np.ndarray, weight: np.ndarray, prior: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(theta, cov)`` ``((..., 3), (..., 3, 3))`` of the ridge fit ``(A + diag(w))^-1 (y + w
-    prior)``, clamped into the physical bounds (``clamp``): ``solved``'s readable definition."""
-    cov = inv3(A + weight[..., :, None] * np.eye(3))
-    theta = np.einsum("nmij,nmj->nmi", cov, y + weight * prior)
-    return clamp(theta, cov)
-
-
 class WheelMonitor:
     """Detection and re-identification of every wheel of a batch (module docstring).
 
@@ -401,7 +337,7 @@ class WheelMonitor:
     if none).
     """
 
-    solver = staticmethod(solved)  # the ridge solve and clamp (``solved_reference``: its definition)
+    solver = staticmethod(solved)  # the ridge solve and clamp
 
     def __init__(
         self,
@@ -478,26 +414,6 @@ class WheelMonitor:
 
     # -- one step -----------------------------------------------------------------------------
 
-    def _sample(
-        self, tach: np.ndarray, gyro: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(x (n, m, 3), tau (n, m), testable (n, m), linear (n, m))`` of the step just flown, in
-        fractions of ``u_max``: ``testable`` where the wheel was below its speed limit (the model
-        holds, clipping included), ``linear`` where, in addition, the measured motor torque did not
-        clip (the sample is linear in ``theta``)."""
-        assert self.last_tach is not None and self.last_gyro is not None
-        w, u = self.w, self.w.u_max_nm
-        dw = matmul(gyro - self.last_gyro, w.spin_axes.T)
-        tau = w.spin_inertia_kgm2 * ((tach - self.last_tach) + dw) / self.dt / u
-        shape, mean_speed, exact = friction_shape(self.last_tach, tach, self.coulomb_nm, w, self.dt)
-        tau = tau + w.viscous_nms * mean_speed / u  # the known viscous part, moved to the left
-        a = self.last_command
-        x = np.stack((a, np.ones_like(a), -shape), axis=-1)
-        testable = exact & (np.abs(self.last_tach) < w.omega_max_rad_s - 0.5)
-        motor_meas = tau + self.theta[..., 2] * shape
-        linear = testable & (np.abs(motor_meas) < 1.0 - self.s.clip_margin)
-        return x, tau, testable, linear
-
     def _solve(self, rows: np.ndarray | None = None) -> None:
         """``theta = (A + diag(w))^-1 (y + w prior)`` and its covariance (``solver``): of every
         wheel, or, with ``rows`` ``(n, m)``, of those wheels only (computed on the episodes that
@@ -513,8 +429,9 @@ class WheelMonitor:
     def observe(self, tach: np.ndarray, gyro: np.ndarray) -> None:
         """Fold in the step just flown: test, accumulate, re-identify. The sample, its test, the
         ring buffer, the window's sums and the CUSUM in one compiled pass over the wheels
-        (``_observe_rows``), the solve compiled (``solved``), an alarm's decision in numpy: the
-        bits of ``observe_reference``."""
+        (``_observe_rows``), the solve compiled (``solved``), an alarm's decision in numpy
+        (``_on_alarm``; tests/oracles/v2_detection.py holds a readable numpy form of the whole
+        step, the same bits)."""
         s, w = self.s, self.w
         alarm = np.zeros((self.n, self.m), dtype=bool)
         change = np.zeros_like(alarm)
@@ -530,36 +447,6 @@ class WheelMonitor:
                 self.buf_ok, self.buf_z, self.buf_tested, self.A, self.y, self.cusum, self.since_zero,
                 statistic, alarm, parallel=self.n >= HEAVY_PARALLEL_MIN_BATCH,
             )  # fmt: skip
-            self._solve()
-            if alarm.any():
-                change = self._on_alarm(alarm)
-        self._conclude(alarm, change, statistic, tach, gyro)
-
-    def observe_reference(self, tach: np.ndarray, gyro: np.ndarray) -> None:
-        """``observe`` in numpy: its readable definition."""
-        s = self.s
-        alarm = np.zeros((self.n, self.m), dtype=bool)
-        change = np.zeros_like(alarm)
-        statistic = np.zeros((self.n, self.m))
-        if self.last_tach is not None:
-            x, tau, testable, ok = self._sample(tach, gyro)
-            predicted = np.clip(self.gain * x[..., 0] + self.bias, -1.0, 1.0) + self.theta[..., 2] * x[..., 2]
-            z = np.where(testable, (tau - predicted) / self.sigma, 0.0)
-            # ring buffer of the last samples, newest at slot k % B
-            slot = self.k % s.buffer
-            self.buf_x[slot], self.buf_tau[slot], self.buf_ok[slot], self.buf_z[slot] = x, tau, ok, z
-            self.buf_tested[slot] = testable
-            # accumulate the linear sample into the window
-            xw = np.where(ok[..., None], x, 0.0) / self.sigma
-            self.A += xw[..., :, None] * xw[..., None, :]
-            self.y += xw * np.where(ok, tau, 0.0)[..., None] / self.sigma
-            # CUSUM
-            up = np.maximum(0.0, self.cusum[..., 0] + z - s.drift)
-            down = np.maximum(0.0, self.cusum[..., 1] - z - s.drift)
-            self.cusum = np.where(testable[..., None], np.stack((up, down), axis=-1), self.cusum)
-            self.since_zero = np.where(self.cusum > 0.0, self.since_zero + 1, 0)  # steps
-            statistic = self.cusum.max(axis=-1)
-            alarm = (statistic > s.threshold) & testable
             self._solve()
             if alarm.any():
                 change = self._on_alarm(alarm)
@@ -662,13 +549,17 @@ def _observe_rows(
     statistic,
     alarm,
 ):  # pragma: no cover - compiled
-    """``observe_reference`` up to its solve, every wheel of every episode: the sample
-    (``WheelMonitor._sample``), its normalized residual against the a-priori estimate ``theta``,
-    the ring buffer's ``slot``, the window's sums ``A`` and ``y`` and the CUSUM (``cusum``,
-    ``since_zero``) in place; the statistic and the alarms into ``statistic`` and ``alarm``. The
-    same operations in the same order as the numpy form (the wheel rates' product as
-    ``products.matmul``'s chain). ``np.maximum(0.0, v)`` is ``v`` or ``0.0`` as below: ``v``, a sum
-    minus the positive drift, is never -0.0."""
+    """``WheelMonitor.observe`` up to its solve, every wheel of every episode: the sample of the
+    step just flown in fractions of ``u_max`` (the regressors ``(a, 1, -shape)``, the torque ``tau``
+    with the known viscous part moved to the left; ``testable`` where the wheel was below its speed
+    limit and ``friction_shape`` converged, linear where in addition the measured motor torque did
+    not clip), its normalized residual against the a-priori estimate ``theta``, the ring buffer's
+    ``slot``, the window's sums ``A`` and ``y`` (the linear samples) and the CUSUM (``cusum``,
+    ``since_zero``; testable samples) in place; the statistic and the alarms into ``statistic`` and
+    ``alarm``. The same operations in the same order as the numpy form in
+    tests/oracles/v2_detection.py (the wheel rates' product as ``products.matmul``'s chain).
+    ``np.maximum(0.0, v)`` is ``v`` or ``0.0`` as below: ``v``, a sum minus the positive drift, is
+    never -0.0."""
     for e in numba.prange(tach.shape[0]):
         d0, d1, d2 = gyro[e, 0] - last_gyro[e, 0], gyro[e, 1] - last_gyro[e, 1], gyro[e, 2] - last_gyro[e, 2]
         for i in range(tach.shape[1]):

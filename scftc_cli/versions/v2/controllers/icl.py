@@ -206,11 +206,11 @@ def stack_offer(
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compiled
-    """``stack_offer``'s loop, chunks of ``CHUNK_ROWS`` episodes per ``prange`` row: the bits of
-    ``_offer_rows_reference``. A full stack's candidates are scored in two passes, the arithmetic
-    of all of them first (``_score_setup``: a loop without calls, which LLVM vectorizes), then the
-    two transcendental calls of each and the choice (``_score_finish``), into scratch kept per
-    chunk."""
+    """``stack_offer``'s loop, chunks of ``CHUNK_ROWS`` episodes per ``prange`` row. A full stack's
+    candidates are scored in two passes, the arithmetic of all of them first (``_score_setup``: a
+    loop without calls, which LLVM vectorizes), then the two transcendental calls of each and the
+    choice (``_score_finish``), into scratch kept per chunk: the bits of scoring each candidate
+    through ``_score`` in turn (tests/oracles/v2_icl.py holds that readable form)."""
     n, m, size = used.shape
     for c in numba.prange((n + CHUNK_ROWS - 1) // CHUNK_ROWS):
         qs, ps, rs, ties = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
@@ -242,37 +242,6 @@ def _offer_rows(ys, us, used, y, u, offer, margin):  # pragma: no cover - compil
                         best, best_j = score, j
                 if best > margin * now + 1e-12:
                     _store(ys, us, used, e, w, best_j, y, u)
-
-
-@numba.njit(cache=True)
-def _offer_rows_reference(ys, us, used, y, u, offer, margin):  # pragma: no cover - compiled
-    """``_offer_rows`` one candidate at a time through ``_score``: its readable definition."""
-    n, m, size = used.shape
-    for e in range(n):
-        for w in range(m):
-            if not offer[e, w]:
-                continue
-            i0, i1, i2, i3, i4, i5, free = _information(ys, used, e, w)
-            if free >= 0:
-                _store(ys, us, used, e, w, free, y, u)
-                continue
-            now = _score(i0, i1, i2, i3, i4, i5)
-            best, best_j = -np.inf, -1
-            na, no, ns = y[e, w, 0], y[e, w, 1], y[e, w, 2]
-            for j in range(size):
-                a, one, s = ys[e, w, j, 0], ys[e, w, j, 1], ys[e, w, j, 2]
-                score = _score(
-                    i0 - a * a + na * na,
-                    i1 - a * one + na * no,
-                    i2 - a * s + na * ns,
-                    i3 - one * one + no * no,
-                    i4 - one * s + no * ns,
-                    i5 - s * s + ns * ns,
-                )
-                if score > best:
-                    best, best_j = score, j
-            if best > margin * now + 1e-12:
-                _store(ys, us, used, e, w, best_j, y, u)
 
 
 def stack_step(

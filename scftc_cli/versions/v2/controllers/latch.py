@@ -71,7 +71,8 @@ class WheelLatch:
 
     def update(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
         """Fold in the live estimate ``raw`` ``(n, m)``; returns the estimate to use. One compiled
-        pass over the episodes (``_latch_rows``), the bits of ``update_reference``."""
+        pass over the episodes (``_latch_rows``; tests/oracles/v2_latch.py holds a readable numpy
+        form, the same bits)."""
         cfg = self.config
         out = np.empty(self.frozen.shape)
         run_rows(
@@ -81,22 +82,6 @@ class WheelLatch:
             float(cfg.min_excitation), out, parallel=len(out) >= PARALLEL_MIN_BATCH,
         )  # fmt: skip
         return out
-
-    def update_reference(self, raw: np.ndarray, excitation: np.ndarray) -> np.ndarray:
-        """``update`` in numpy: its readable definition."""
-        cfg = self.config
-        slot = self.count % (cfg.window + 1)
-        np.put_along_axis(self.history, slot[None], raw[None], axis=0)
-        self.count += 1
-        full = self.count > cfg.window
-        recent = np.where(full, self.history, raw)  # before a full window, only what is there
-        spread = recent.max(axis=0) - recent.min(axis=0)
-        still = full & (spread <= cfg.tolerance * np.maximum(np.abs(raw), 0.1))
-        due = still | (self.count > cfg.max_steps)
-        now = ~self.latched & (self.count > cfg.min_steps) & due & (excitation >= cfg.min_excitation)
-        self.frozen = np.where(now, raw, self.frozen)
-        self.latched |= now
-        return np.where(self.latched, self.frozen, raw)
 
 
 @numba.njit(cache=True, parallel=True)
@@ -114,7 +99,7 @@ def _latch_rows(
     min_excitation,
     out,
 ):  # pragma: no cover
-    """``WheelLatch.update_reference`` of every wheel of every episode, the state (``history``
+    """``WheelLatch.update`` of every wheel of every episode, the state (``history``
     ``(window + 1, n, m)``, ``count``, ``latched``, ``frozen`` ``(n, m)``) updated in place and the
     estimate to use written into ``out``. The window's spread is ``max - min`` of its estimates, NaN
     if any is NaN (as numpy's reductions give it); only its comparison is used, where the sign of

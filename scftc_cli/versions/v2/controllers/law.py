@@ -27,7 +27,7 @@ import numpy as np
 
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
-from scftc_cli.sim.mrp import compose, cross, norm2
+from scftc_cli.sim.mrp import cross, norm2
 from scftc_cli.sim.products import chain4, chain_entry, matmul, split_dot3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import linalg_inv
@@ -74,8 +74,10 @@ class AttitudeFuser:
     median of the valid heads (the mean of two, the one of one); where no head is valid, the last
     estimate propagated with the trapezoid of the last two gyro readings. Before any valid head
     the estimate is zero (never the case in the benchmark: every episode starts with valid heads).
-    One numba pass (``_fuse``) performing exactly the operations of ``fuse_reference``, in the
-    same order: the same bits, ~20x faster on large batches.
+    The heads are first put on the MRP branch nearest the propagated estimate (``nearest_branch``);
+    the propagation composes the estimate with ``rotation_mrp`` of the trapezoid's rotation. One
+    numba pass (``_fuse``), ~20x faster than numpy array operations on large batches
+    (tests/oracles/v2_law.py holds a readable numpy form, the same bits).
     """
 
     def __init__(self, n: int) -> None:
@@ -96,41 +98,14 @@ class AttitudeFuser:
         return self.sigma
 
 
-def fuse_reference(
-    sigma: np.ndarray,
-    heads: np.ndarray,
-    valid: np.ndarray,
-    gyro: np.ndarray,
-    last_gyro: np.ndarray | None,
-    dt_s: float,
-) -> np.ndarray:
-    """The readable numpy form of one ``AttitudeFuser`` step (``last_gyro`` ``None`` on the first)."""
-    if last_gyro is not None:
-        propagated = compose(sigma, rotation_mrp(0.5 * (last_gyro + gyro) * dt_s))
-    else:
-        propagated = sigma
-    aligned = np.stack([nearest_branch(heads[:, h], propagated) for h in range(heads.shape[1])], axis=1)
-    voted, count = vote(aligned, valid)
-    return np.where((count > 0)[:, None], voted, propagated)
-
-
 def vote(aligned: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Component-wise median of three heads ``(n, 3, 3)`` where all are valid, the mean of the
-    valid ones otherwise; returns ``(vote (n, 3), number of valid heads (n,))``. One compiled pass,
-    the same bits as ``vote_reference``."""
+    valid ones otherwise; returns ``(vote (n, 3), number of valid heads (n,))``. One compiled pass
+    (tests/oracles/v2_law.py holds a readable numpy form)."""
     out = np.empty((aligned.shape[0], 3))
     count = np.ascontiguousarray(valid).sum(axis=1)
     _vote_rows(np.ascontiguousarray(aligned, dtype=np.float64), np.ascontiguousarray(valid), count, out)
     return out, count
-
-
-def vote_reference(aligned: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``vote`` in numpy, its readable definition."""
-    a, b, c = aligned[:, 0], aligned[:, 1], aligned[:, 2]
-    median = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
-    count = valid.sum(axis=1)
-    mean = (aligned * valid[:, :, None]).sum(axis=1) / np.maximum(count, 1)[:, None]
-    return np.where((count == 3)[:, None], median, mean), count
 
 
 @numba.njit(cache=True)
@@ -248,33 +223,27 @@ def friction_nm(
     speed_rad_s: np.ndarray, coulomb_nm: np.ndarray | float, wheels: WheelKnowledge
 ) -> np.ndarray:
     """Bearing friction ``(n, m)`` N m on each wheel at ``speed_rad_s`` (the plant's law):
-    ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC``. One compiled
-    pass over the wheels (``_friction_rows``; the Coulomb level broadcast), the bits of
-    ``friction_nm_reference``."""
+    ``-(sign(Omega) fC + cV Omega)``, linear through zero inside ``|Omega| < wLC`` (slope
+    ``(fC + cV wLC) / wLC``). One compiled pass over the wheels (``_friction_rows``; the Coulomb
+    level broadcast) for ``(n, m)`` speeds and levels that broadcast to them; numpy array operations
+    for any other shape (tests/oracles/v2_law.py holds a readable numpy form, the same bits)."""
     speed = as_f64(speed_rad_s)
     coulomb = np.asarray(coulomb_nm, dtype=np.float64)
     levels = coulomb.reshape((1,) * (2 - coulomb.ndim) + coulomb.shape) if coulomb.ndim <= 2 else coulomb
     fits = speed.ndim == levels.ndim == 2 and all(
         c in (1, s) for c, s in zip(levels.shape, speed.shape, strict=True)
     )
-    if not fits:
-        return friction_nm_reference(speed_rad_s, coulomb_nm, wheels)  # another shape: numpy's
+    if not fits:  # another shape: the same law in numpy
+        linear = wheels.omega_linear_rad_s
+        slope = (coulomb_nm + wheels.viscous_nms * linear) / linear
+        outside = -(np.sign(speed_rad_s) * coulomb_nm + wheels.viscous_nms * speed_rad_s)
+        return np.where(np.abs(speed_rad_s) < linear, -(slope * speed_rad_s), outside)
     out = np.empty(speed.shape)
     run_rows(
         _friction_rows, speed, np.ascontiguousarray(levels), float(wheels.viscous_nms),
         float(wheels.omega_linear_rad_s), out, parallel=len(out) >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out
-
-
-def friction_nm_reference(
-    speed_rad_s: np.ndarray, coulomb_nm: np.ndarray | float, wheels: WheelKnowledge
-) -> np.ndarray:
-    """``friction_nm`` in numpy: its readable definition."""
-    linear = wheels.omega_linear_rad_s
-    slope = (coulomb_nm + wheels.viscous_nms * linear) / linear
-    outside = -(np.sign(speed_rad_s) * coulomb_nm + wheels.viscous_nms * speed_rad_s)
-    return np.where(np.abs(speed_rad_s) < linear, -(slope * speed_rad_s), outside)
 
 
 def pseudo_inverse(
@@ -290,11 +259,15 @@ def pseudo_inverse(
     bits by default, compiled: ``linalg_inv``); without ``floor_zero_trace`` an all-zero matrix gets
     no damping (``fdir``'s form).
 
-    The products run compiled (``_gram_rows``, ``_pinv_rows``) around ``invert``: the bits of
-    ``pseudo_inverse_reference``: each product entry is ``sim/products.py``'s multiply-add chain."""
+    The products run compiled (``_gram_rows``, ``_pinv_rows``) around ``invert``, each product
+    entry ``sim/products.py``'s multiply-add chain; a matrix of another shape runs numpy's array
+    operations (tests/oracles/v2_law.py holds a readable numpy form, the same bits)."""
     matrix = as_f64(matrix)
     if matrix.ndim != 3 or matrix.shape[1] != 3 or matrix.shape[2] < 2:  # another shape: numpy's
-        return pseudo_inverse_reference(matrix, damping, invert, floor_zero_trace)
+        mmt = matmul(matrix, np.swapaxes(matrix, 1, 2))
+        trace = (mmt[:, 0, 0] + mmt[:, 1, 1]) + mmt[:, 2, 2]
+        eps = damping * (np.where(trace > 0.0, trace, 1.0) if floor_zero_trace else trace)[:, None, None]
+        return matmul(np.swapaxes(matrix, 1, 2), invert(mmt + eps * np.eye(3)))
     n, parallel = len(matrix), len(matrix) >= PARALLEL_MIN_BATCH
     regularized = np.empty((n, 3, 3))
     run_rows(_gram_rows, matrix, float(damping), bool(floor_zero_trace), regularized, parallel=parallel)
@@ -304,22 +277,9 @@ def pseudo_inverse(
     return out
 
 
-def pseudo_inverse_reference(
-    matrix: np.ndarray,
-    damping: float = 1e-12,
-    invert: Callable[[np.ndarray], np.ndarray] = np.linalg.inv,
-    floor_zero_trace: bool = True,
-) -> np.ndarray:
-    """``pseudo_inverse`` in numpy: its readable definition."""
-    mmt = matrix @ np.swapaxes(matrix, 1, 2)
-    trace = np.trace(mmt, axis1=1, axis2=2)
-    eps = damping * (np.where(trace > 0.0, trace, 1.0) if floor_zero_trace else trace)[:, None, None]
-    return np.swapaxes(matrix, 1, 2) @ invert(mmt + eps * np.eye(3))
-
-
 @numba.njit(cache=True, parallel=True)
 def _gram_rows(matrix, damping, floor_zero_trace, out):  # pragma: no cover - compiled
-    """``M M' + eps I`` ``(n, 3, 3)`` of ``pseudo_inverse_reference`` into ``out``: each entry of
+    """``M M' + eps I`` ``(n, 3, 3)`` of ``pseudo_inverse`` into ``out``: each entry of
     ``M M'`` as ``products``' multiply-add chain over the wheels, the trace
     summed left to right as numpy reduces three terms, and ``eps I`` added to every entry (``+ 0.0``
     off the diagonal, which turns a -0.0 into +0.0 as numpy's addition does)."""

@@ -74,29 +74,13 @@ class MEKFSettings:
 
 def inv3(m: np.ndarray) -> np.ndarray:
     """Inverse of a stack of 3x3 matrices ``(..., 3, 3)`` by the adjugate (faster than LAPACK
-    for small matrices; the callers' matrices are covariances, well conditioned). One compiled pass
-    (``_inv3_rows``), the bits of ``inv3_reference``."""
+    for small matrices; the callers' matrices are covariances, well conditioned): the cofactors
+    over ``det = (a c00 + b c10) + c c20``. One compiled pass (``_inv3_rows``;
+    tests/oracles/v2_mekf.py holds a readable numpy form, the same bits)."""
     flat = as_f64(m).reshape(-1, 3, 3)
     out = np.empty_like(flat)
     run_rows(_inv3_rows, flat, out, parallel=len(flat) >= PARALLEL_MIN_BATCH)
     return out.reshape(np.shape(m))
-
-
-def inv3_reference(m: np.ndarray) -> np.ndarray:
-    """``inv3`` in numpy: its readable definition."""
-    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
-    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
-    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    co = np.stack(
-        (
-            np.stack((e * i - f * h, c * h - b * i, b * f - c * e), axis=-1),
-            np.stack((f * g - d * i, a * i - c * g, c * d - a * f), axis=-1),
-            np.stack((d * h - e * g, b * g - a * h, a * e - b * d), axis=-1),
-        ),
-        axis=-2,
-    )
-    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
-    return co / det[..., None, None]
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -181,8 +165,10 @@ class MEKF:
         self.P[:, 3:, 3:] = self.bias0_var * np.eye(3)
 
     def _propagate(self, gyro: np.ndarray) -> None:
-        """The attitude and covariance over a step (``_propagate_reference``): the covariance's
-        products in one compiled pass (``_propagation_rows``), the same bits."""
+        """The attitude and covariance over a step: the attitude composed with the step's
+        rotation, ``P`` to ``Phi P Phi' + Q`` (symmetrized), the covariance's products in one
+        compiled pass (``_propagation_rows``; tests/oracles/v2_mekf.py holds a readable numpy form,
+        the same bits)."""
         assert self.last_gyro is not None
         dt = self.dt
         rate = 0.5 * (self.last_gyro + gyro) - self.bias
@@ -197,51 +183,18 @@ class MEKF:
         )  # fmt: skip
         self.P = out
 
-    def _propagate_reference(self, gyro: np.ndarray) -> None:
-        """``_propagate`` in numpy: its readable definition."""
-        assert self.last_gyro is not None
-        dt = self.dt
-        rate = 0.5 * (self.last_gyro + gyro) - self.bias
-        phi = rate * dt
-        self.sigma = compose(self.sigma, rotation_mrp(phi))
-        phi_tt = rotation_matrix(phi)
-        phi_tb = -dt * (np.eye(3) - 0.5 * skew(phi))
-        P = self.P
-        Ptt, Ptb, Pbb = P[:, :3, :3], P[:, :3, 3:], P[:, 3:, 3:]
-        # Phi P Phi' with Phi = [[A, B], [0, I]]
-        a_ptt = phi_tt @ Ptt + phi_tb @ np.swapaxes(Ptb, 1, 2)
-        a_ptb = phi_tt @ Ptb + phi_tb @ Pbb
-        new_tt = a_ptt @ np.swapaxes(phi_tt, 1, 2) + a_ptb @ np.swapaxes(phi_tb, 1, 2)
-        qu = self.s.bias_walk**2
-        q_tt = self.gyro_var * dt * dt + qu * dt**3 / 3.0
-        q_tb = -qu * dt * dt / 2.0
-        eye = np.eye(3)
-        out = np.empty_like(P)
-        out[:, :3, :3] = new_tt + q_tt * eye
-        out[:, :3, 3:] = a_ptb + q_tb * eye
-        out[:, 3:, :3] = np.swapaxes(out[:, :3, 3:], 1, 2)
-        out[:, 3:, 3:] = Pbb + qu * dt * eye
-        self.P = 0.5 * (out + np.swapaxes(out, 1, 2))
-
-    def _innovations(self, heads: np.ndarray) -> np.ndarray:
-        """Each head's rotation from the predicted attitude, ``(n, 3, 3)`` rad (body frame)."""
-        inverse = -self.sigma
-        return np.stack(
-            [
-                rotation_vector(compose(inverse, nearest_branch(heads[:, h], self.sigma)))
-                for h in range(self.heads)
-            ],
-            axis=1,
-        )
-
     def _head_tests(
         self, heads: np.ndarray, candidate: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Each head's innovation ``nu`` ``(n, h, 3)`` rad, its normalized squared size against the
-        prediction ``nis`` ``(n, h)``, and the inter-head outliers ``(n, h)`` among the
-        ``candidate`` heads. Two compiled passes around numpy's ``arctan`` (whose SIMD loop is
-        not libm's ``atan``: they differ in the last bit on about one value in a thousand), the
-        bits of ``_head_tests_reference``."""
+        """Each head's innovation ``nu`` ``(n, h, 3)`` rad (its rotation from the predicted
+        attitude, body frame: the head on the branch nearest the estimate, composed with the
+        estimate's inverse, as a rotation vector), its normalized squared size against the
+        prediction ``nis`` ``(n, h)`` (``S = P_tt + R``), and the inter-head outliers ``(n, h)``
+        among the ``candidate`` heads: a head that disagrees with every other candidate head
+        (``|nu_h - nu_j|^2 / 2R`` above the gate, chi-square with 3 dof) while at least one other
+        candidate is no outlier. Two compiled passes around numpy's ``arctan`` (whose SIMD loop is
+        not libm's ``atan``: they differ in the last bit on about one value in a thousand;
+        tests/oracles/v2_mekf.py holds a readable numpy form, the same bits)."""
         n, h = len(heads), self.heads
         v, size = np.empty((h, n, 3)), np.empty((h, n))
         parallel = n >= PARALLEL_MIN_BATCH
@@ -255,30 +208,11 @@ class MEKF:
         )  # fmt: skip
         return nu, nis, outlier
 
-    def _head_tests_reference(
-        self, heads: np.ndarray, candidate: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``_head_tests`` in numpy: its readable definition."""
-        s = self.s
-        nu = self._innovations(heads)
-        S = self.P[:, :3, :3] + self.r_var * np.eye(3)
-        nis = np.einsum("nhi,nij,nhj->nh", nu, inv3(S), nu)
-        # inter-head consistency: an outlier disagrees with every other candidate head, while at
-        # least one other candidate is no outlier (a majority against it)
-        h = self.heads
-        diff = nu[:, :, None, :] - nu[:, None, :, :]
-        pair = norm2(diff) / (2.0 * self.r_var)  # (n, h, h): chi-square, 3 dof, per pair
-        others = candidate[:, None, :] & ~np.eye(h, dtype=bool)[None]
-        closest = np.where(others, pair, np.inf).min(axis=2)
-        outlier = candidate & (closest > s.gate)
-        outlier &= (candidate & ~outlier).any(axis=1)[:, None]
-        return nu, nis, outlier
-
     def _update(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
         """Kalman update with the mean innovation of ``count`` heads (rows with ``count == 0`` are
         left alone); returns the normalized fused innovation ``(n, 3)`` (zero where not updated).
-        The gain, the covariance and the correction in one compiled pass (``_update_rows``), the
-        bits of ``_update_reference``."""
+        The gain, the covariance (Joseph form) and the correction in one compiled pass
+        (``_update_rows``; tests/oracles/v2_mekf.py holds a readable numpy form, the same bits)."""
         live = count > 0
         n = len(live)
         P, dx, z = np.empty_like(self.P), np.empty((n, 6)), np.empty((n, 3))
@@ -290,26 +224,6 @@ class MEKF:
         self.sigma = np.where(live[:, None], compose(self.sigma, rotation_mrp(dx[:, :3])), self.sigma)
         self.bias = self.bias + dx[:, 3:]
         return z
-
-    def _update_reference(self, nu_mean: np.ndarray, count: np.ndarray) -> np.ndarray:
-        """``_update`` in numpy: its readable definition."""
-        live = count > 0
-        r = self.r_var / np.maximum(count, 1)
-        S = self.P[:, :3, :3] + r[:, None, None] * np.eye(3)
-        S_inv = inv3(S)
-        K = self.P[:, :, :3] @ S_inv  # (n, 6, 3)
-        dx = np.einsum("nij,nj->ni", K, nu_mean)
-        dx = np.where(live[:, None], dx, 0.0)
-        # Joseph form: (I - K H) P (I - K H)' + K R K'
-        IKH = np.broadcast_to(np.eye(6), K.shape[:1] + (6, 6)).copy()
-        IKH[:, :, :3] -= K
-        P_new = IKH @ self.P @ np.swapaxes(IKH, 1, 2) + r[:, None, None] * (K @ np.swapaxes(K, 1, 2))
-        P_new = 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
-        self.P = np.where(live[:, None, None], P_new, self.P)
-        self.sigma = np.where(live[:, None], compose(self.sigma, rotation_mrp(dx[:, :3])), self.sigma)
-        self.bias = self.bias + dx[:, 3:]
-        scale = np.sqrt(np.diagonal(S, axis1=1, axis2=2))
-        return np.where(live[:, None], nu_mean / scale, 0.0)
 
     # -- one control step ---------------------------------------------------------------------
 
@@ -389,14 +303,14 @@ class MEKF:
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _inv3_rows(m, out):  # pragma: no cover - compiled
-    """``inv3_reference`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
+    """``inv3`` of every matrix of the stack ``m`` ``(n, 3, 3)`` into ``out``."""
     for row in numba.prange(m.shape[0]):
         inverse3(m[row], out[row])
 
 
 @numba.njit(cache=True, parallel=True)
 def _propagation_rows(P, phi_tt, phi, dt, q_tt, q_tb, q_bb, out):  # pragma: no cover - compiled
-    """``Phi P Phi' + Q`` of ``MEKF._propagate_reference`` for every episode into ``out``
+    """``Phi P Phi' + Q`` of ``MEKF._propagate`` for every episode into ``out``
     ``(n, 6, 6)``: ``Phi = [[A, B], [0, I]]`` with ``A = phi_tt`` ``(n, 3, 3)`` and ``B = -dt (I -
     [phi x] / 2)``; the noise ``q_tt I``, ``q_tb I``, ``q_bb I`` added to the blocks; symmetrized."""
     for e in numba.prange(P.shape[0]):
@@ -449,7 +363,7 @@ def _innovation_covariance(p, r):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no cover - compiled
-    """``MEKF._update_reference`` for every episode: the new covariance into ``out_p`` (Joseph
+    """``MEKF._update`` for every episode: the new covariance into ``out_p`` (Joseph
     form, symmetrized; unchanged where ``count == 0``), the correction ``dx`` ``(n, 6)`` into
     ``out_dx`` (zero there) and the normalized fused innovation into ``out_z`` ``(n, 3)``. ``S^-1`` by
     the adjugate (``sim/scalars.inverse3``); ``K nu`` as numpy's three-term einsum, ``(p0 + p2) + p1``."""
@@ -495,10 +409,11 @@ def _update_rows(P, nu_mean, count, r_var, out_p, out_dx, out_z):  # pragma: no 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
-    """``MEKF._innovations`` up to its ``arctan``: per episode and head, the reading on its branch
-    nearest the estimate (``law.nearest_branch_row``), composed with the estimate's inverse
-    (``sim/mrp_fused.compose_row``) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
-    ``size`` ``(h, n)``; the same operations in the same order as the numpy functions."""
+    """``MEKF._head_tests``' innovations up to their ``arctan``: per episode and head, the reading
+    on its branch nearest the estimate (``law.nearest_branch_row``), composed with the estimate's
+    inverse (``sim/mrp_fused.compose_row``) into ``v`` ``(h, n, 3)``, and its size ``|v|`` into
+    ``size`` ``(h, n)``; the same operations in the same order as the numpy functions
+    (``law.nearest_branch``, ``mrp.compose``, ``rotation_vector``)."""
     for e in numba.prange(heads.shape[0]):
         r0, r1, r2 = sigma[e, 0], sigma[e, 1], sigma[e, 2]
         for h in range(heads.shape[1]):
@@ -512,7 +427,7 @@ def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
 def _head_test_rows(
     v, size, turned, P, r_var, two_r_var, candidate, gate, nu, nis, outlier
 ):  # pragma: no cover - compiled
-    """``MEKF._head_tests_reference`` from ``_branch_rows``' ``v`` and ``size`` and numpy's
+    """``MEKF._head_tests`` from ``_branch_rows``' ``v`` and ``size`` and numpy's
     ``arctan(size)`` (``turned``): the rotation vectors ``nu``, their ``nis`` against ``S = P_tt +
     r I`` (the three-operand einsum's order: every product ``nu_i S^-1_ij nu_j`` added in turn, i
     then j, to +0.0: einsum adds them from the first product and then to +0.0, which differs only

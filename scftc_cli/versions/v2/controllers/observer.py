@@ -39,7 +39,8 @@ class OffsetObserver:
 
     def update(self, residual: np.ndarray, psi: np.ndarray, valid: np.ndarray) -> None:
         """Fold in one step's residual and friction regressor where ``valid`` ``(n, m)``: one
-        compiled pass over the episodes (``_update_rows``), the bits of ``update_reference``."""
+        compiled pass over the episodes (``_update_rows``; tests/oracles/v2_observer.py holds a
+        readable numpy form, the same bits)."""
         theta, p = np.empty_like(self.theta), np.empty_like(self.p)
         run_rows(
             _update_rows, self.theta, self.p, as_f64(residual), as_f64(psi), as_flags(valid),
@@ -48,27 +49,12 @@ class OffsetObserver:
         )  # fmt: skip
         self.theta, self.p = theta, p
 
-    def update_reference(self, residual: np.ndarray, psi: np.ndarray, valid: np.ndarray) -> None:
-        """``update`` in numpy: its readable definition."""
-        cfg = self.config
-        phi = np.stack((np.ones_like(psi), psi), axis=-1)  # (n, m, 2)
-        p_phi = np.einsum("nmij,nmj->nmi", self.p, phi)
-        denom = self.noise + np.einsum("nmi,nmi->nm", phi, p_phi)
-        gain = p_phi / denom[..., None]
-        error = residual - np.einsum("nmi,nmi->nm", phi, self.theta)
-        theta = self.theta + gain * error[..., None]
-        p = (self.p - gain[..., :, None] * p_phi[..., None, :]) / cfg.forgetting
-        trace = p[..., 0, 0] + p[..., 1, 1]
-        p = p * np.minimum(1.0, cfg.trace_max / trace)[..., None, None]
-        self.theta = np.where(valid[..., None], theta, self.theta)
-        self.p = np.where(valid[..., None, None], p, self.p)
-
 
 @numba.njit(cache=True, parallel=True)
 def _update_rows(
     theta, p, residual, psi, valid, noise, forgetting, trace_max, out_theta, out_p
 ):  # pragma: no cover
-    """``OffsetObserver.update_reference`` of every wheel of every episode into ``out_theta``
+    """``OffsetObserver.update`` of every wheel of every episode into ``out_theta``
     ``(n, m, 2)`` and ``out_p`` ``(n, m, 2, 2)``. The regressor is ``(1, psi)``; numpy's einsums
     here sum two products, which any order adds alike (and from +0.0, as numpy does)."""
     for e in numba.prange(psi.shape[0]):

@@ -155,8 +155,8 @@ def wheel_features(
 ) -> np.ndarray:
     """``(n * m, N_FEATURES)`` features, episode-major then wheel (the order of ``FEATURES``),
     from ``(n, m)`` arrays; the invalid pairs are zeroed (nothing unmodelled reaches the GRU).
-    One compiled pass over the episodes (``_feature_rows``), the bits of
-    ``wheel_features_reference``."""
+    One compiled pass over the episodes (``_feature_rows``; tests/oracles/v2_student.py holds a
+    readable numpy form, the same bits)."""
     n, m = np.shape(a)
     out = np.empty((n, m, N_FEATURES))
     run_rows(
@@ -166,45 +166,6 @@ def wheel_features(
         parallel=n >= PARALLEL_MIN_BATCH,
     )  # fmt: skip
     return out.reshape(-1, N_FEATURES)
-
-
-def wheel_features_reference(
-    a: np.ndarray,
-    y: np.ndarray,
-    da: np.ndarray,
-    dy: np.ndarray,
-    psi: np.ndarray,
-    speed: np.ndarray,
-    innovation: np.ndarray,
-    after_alarm: np.ndarray,
-    clipped: np.ndarray,
-    valid_raw: np.ndarray,
-    valid_diff: np.ndarray,
-) -> np.ndarray:
-    """``wheel_features`` in numpy: its readable definition."""
-    a_r, y_r = a * valid_raw, y * valid_raw
-    da_d, dy_d = da * valid_diff, dy * valid_diff
-    ratio = np.clip(a_r * y_r / (a_r * a_r + RATIO_EPS), -RATIO_CLIP, RATIO_CLIP)
-    ratio_diff = np.clip(da_d * dy_d / (da_d * da_d + RATIO_EPS), -RATIO_CLIP, RATIO_CLIP)
-    cols = (
-        a_r,
-        y_r,
-        da_d,
-        dy_d,
-        a_r * y_r,
-        a_r * a_r,
-        ratio,
-        ratio_diff,
-        psi,
-        speed,
-        np.clip(innovation, -INNOVATION_CLIP, INNOVATION_CLIP),
-        after_alarm,
-        clipped,
-        np.where(clipped, np.sign(y * a), 0.0),
-        valid_raw,
-        valid_diff,
-    )
-    return np.stack([np.asarray(c, dtype=np.float64) for c in cols], axis=-1).reshape(-1, N_FEATURES)
 
 
 @numba.njit(inline="always")
@@ -223,9 +184,12 @@ def _sign(v):  # pragma: no cover
 def _feature_rows(
     a, y, da, dy, psi, speed, innovation, after_alarm, clipped, valid_raw, valid_diff, out
 ):  # pragma: no cover
-    """``wheel_features_reference`` of every wheel of every episode into ``out`` ``(n, m, F)``: the
-    same IEEE operations in the same order, one row at a time (a flag multiplies as 1.0 or 0.0, as
-    numpy casts it)."""
+    """``wheel_features`` of every wheel of every episode into ``out`` ``(n, m, F)``, one row at a
+    time in the order of ``FEATURES``: the raw pair ``(a, y)`` and the differenced pair
+    ``(da, dy)``, each zeroed where invalid (a flag multiplies as 1.0 or 0.0, as numpy casts it),
+    ``a y`` and ``a^2`` of the raw pair, each pair's ratio clipped to ``RATIO_CLIP``, ``psi``, the
+    speed, the innovation clipped to ``INNOVATION_CLIP``, ``after_alarm``, the clip flag and
+    ``sign(y a)`` where clipped (``np.sign``'s: +0.0 for either zero), the two validity flags."""
     for e in numba.prange(a.shape[0]):
         for i in range(a.shape[1]):
             raw, diff = 1.0 if valid_raw[e, i] else 0.0, 1.0 if valid_diff[e, i] else 0.0

@@ -5,34 +5,31 @@ observations. Each episode's noise comes from its own stream (``WheelEpisodes.no
 like every other draw of the cell), consumed in a fixed order: first the gyro's constant bias
 (three uniforms), then 16 standard normals per step (head 1, 2, 3 as three axes each, the gyro's
 three axes, the four tachometers). ``observe`` draws each step's normals in its kernel, one
-episode's stream after another (``sim/pcg64.py``); ``observe_reference`` draws them from numpy's
-generators in blocks of steps. Both give exactly the numbers of one long draw.
+episode's stream after another (``sim/pcg64.py``): exactly the numbers of one long draw from
+numpy's generators.
 
 A head's rotation noise is the MRP ``(sigma_st / 4) z``: the rotation vector of an MRP ``p`` is
 ``4 atan(|p|) p / |p|``, which for 10 arcsec equals ``4 p`` to 1e-14 relative, so each axis gets
 ``sigma_st`` of rotation noise without a transcendental function (those may round differently on
 different CPUs; the observations must not).
 
-``observe_reference`` writes the observation as plain numpy array operations, its noise drawn
-from each episode's ``numpy.random.Generator`` (the readable definition); ``observe``, what every
-rollout calls, runs the same floating-point operations in the same order (those of
-``mrp.compose`` included), without contraction into fused multiply-adds, as one numba pass over
-the batch that also draws the noise (``sim/pcg64.py``: numpy's PCG64 and ziggurat, the same
-numbers), in parallel over episodes on large batches. The two agree to the bit; a sensors object
-is read through one of them (each advances its own copy of the streams).
+``observe``, what every rollout calls, is one numba pass over the batch that also draws the
+noise (``sim/pcg64.py``: numpy's PCG64 and ziggurat, the same numbers), in parallel over episodes
+on large batches. It runs the floating-point operations of plain numpy array operations in the
+same order (those of ``mrp.compose`` included), without contraction into fused multiply-adds:
+tests/oracles/v2_sensors.py holds that readable numpy form, its noise drawn from each episode's
+``numpy.random.Generator``, and the two agree to the bit.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
-from scftc_cli.sim.mrp import compose
-from scftc_cli.sim.pcg64 import fill_uniform, numpy_stream, seeded_states, standard_normal
+from scftc_cli.sim.pcg64 import fill_uniform, seeded_states, standard_normal
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.spec import BenchmarkSpec
@@ -42,7 +39,6 @@ from scftc_cli.versions.v2.spec import V2, SensorSuite
 ARCSEC_TO_RAD = math.pi / (180.0 * 3600.0)
 NOISE_CHANNELS = 16
 """Normals per episode per step: 3 heads x 3 axes, 3 gyro axes, 4 tachometers."""
-BLOCK_STEPS = 50
 
 
 def sensor_knowledge(suite: SensorSuite, dt_s: float) -> SensorKnowledge:
@@ -91,68 +87,15 @@ class HeadsGyroTachometers(Sensors):
         bound = self.knowledge.gyro_bias_bound_rad_s
         self.gyro_bias = np.empty((n, 3))
         fill_uniform(self.rng, -bound, bound, self.gyro_bias)  # each stream's first three draws
-        self.block = np.empty((n, BLOCK_STEPS, NOISE_CHANNELS))
-        self.block_start = -BLOCK_STEPS
         self.next_step = 0  # the step observe reads next
         # on threads for large batches (``sim.rows``): the same numbers, each episode draws from its
         # own stream
         self.parallel = n >= PARALLEL_MIN_BATCH
 
-    @functools.cached_property
-    def streams(self) -> list[np.random.Generator]:
-        """``observe_reference``'s copy of the streams: numpy's generators, standing where
-        ``observe``'s started (after the gyro bias's three uniforms)."""
-        bound = self.knowledge.gyro_bias_bound_rad_s
-        streams = [numpy_stream(seed) for seed in self.noise_seed]
-        for stream in streams:
-            stream.uniform(-bound, bound, 3)
-        return streams
-
-    def _noise(self, k: int) -> np.ndarray:
-        """``(n, 16)`` standard normals of step ``k`` (steps are observed in order)."""
-        if not self.block_start <= k < self.block_start + BLOCK_STEPS:
-            if k != self.block_start + BLOCK_STEPS:
-                raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
-            for e, stream in enumerate(self.streams):
-                stream.standard_normal(out=self.block[e])
-            self.block_start = k
-        return self.block[:, k - self.block_start]
-
-    def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
-        """``observe`` as numpy array operations: the readable definition, equal to the bit."""
-        states = plant.states()
-        sigma, omega, wheels = states["sigma"], states["omega_rad_s"], states["wheel_speed_rad_s"]
-        n = len(sigma)
-        z = self._noise(k)
-        faulted = k >= self.onset
-        out = np.empty((n, 9 + self.heads + 3 + wheels.shape[1]))
-        head_noise = (0.25 * self.knowledge.star_tracker_noise_rad) * z[:, :9]
-        for h in range(self.heads):
-            this = self.head == h
-            seen = sigma
-            biased = np.flatnonzero(faulted & self.biased & this)
-            if len(biased):
-                seen = sigma.copy()
-                seen[biased] = compose(sigma[biased], self.head_bias[biased])
-            reported = compose(seen, head_noise[:, 3 * h : 3 * h + 3])
-            stuck = self.stuck & this
-            np.copyto(self.frozen, reported, where=(stuck & (k == self.onset))[:, None])
-            reported = np.where((stuck & faulted)[:, None], self.frozen, reported)
-            valid = ~(self.outage & faulted)
-            out[:, 3 * h : 3 * h + 3] = np.where(valid[:, None], reported, 0.0)
-            out[:, 9 + h] = valid
-        g = 9 + self.heads
-        gyro_noise = self.knowledge.gyro_noise_rad_s * z[:, 9:12]
-        out[:, g : g + 3] = (
-            omega + self.gyro_bias + gyro_noise + np.where(faulted[:, None], self.gyro_step, 0.0)
-        )
-        out[:, g + 3 :] = wheels + self.knowledge.tachometer_noise_rad_s * z[:, 12:16]
-        return out
-
     def observe(self, k: int, plant: Plant) -> np.ndarray:
-        """``(n, 19)`` observation of the plant's true state at the start of step ``k``
-        (``observe_reference``'s numbers, noise draws included, fused into one pass); steps are
-        read in order, each once."""
+        """``(n, 19)`` observation of the plant's true state at the start of step ``k``, noise
+        draws included, in one pass (``_observe_episode`` per episode); steps are read in order,
+        each once."""
         if k != self.next_step:
             raise ValueError(f"sensors are read step by step; step {k} follows {self.next_step - 1}")
         states = plant.states()
@@ -216,7 +159,7 @@ def _observe_episode(
     e, k, heads, sigma, omega, wheels, rng, onset, biased, stuck, outage, head, head_bias, gyro_bias,
     gyro_step, frozen, head_scale, gyro_scale, tach_scale, out,
 ):  # fmt: skip
-    """``observe_reference`` of episode ``e`` at step ``k`` into ``out[e]`` (19 values); draws the
+    """``observe`` of episode ``e`` at step ``k`` into ``out[e]`` (19 values); draws the
     episode's 16 normals of the step from ``rng[e]`` in channel order and updates ``frozen[e]``.
     Per head ``h``: the true attitude (composed with the head's offset where ``st_bias`` is in force
     on it), composed with ``head_scale z``; a stuck head's report at the onset is frozen and

@@ -17,11 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from scftc_cli.protocol import Context, Controller
-from scftc_cli.sim.mrp import cross
 from scftc_cli.versions.v2.controllers.law import (
     AttitudeFuser,
     HeldAllocation,
-    allocate,
     allocation,
     friction_nm,
 )
@@ -31,13 +29,8 @@ from scftc_cli.versions.v3.controllers import fused
 from scftc_cli.versions.v3.controllers.law import (
     NULL_RATE_PER_S,
     NULL_TARGET_RAD_S,
-    attitude_error,
-    null_space_commands,
-    rod_commands,
     rods_of,
     split_observation,
-    unloading_dipole,
-    wheel_momentum,
 )
 from scftc_cli.versions.v3.sim.dynamics import MassProperties, OrbitGeometry, external_torque_nm
 from scftc_cli.versions.v3.sim.environment import (
@@ -106,6 +99,11 @@ class MissionLaw(Controller):
         do unless a subclass keeps state on them)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
+        """Wheel and rod commands ``(n, m + 3)`` for a step's observations (``split_observation``):
+        the fused attitude's error to the target, the demand, the rods' unloading and the wheels'
+        allocation in one compiled law
+        (``fused.law_commands``; tests/oracles/v3_analytic.py holds the readable form through
+        ``law.py``'s numpy functions, the same bits)."""
         heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
         sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
         error = fused.attitude_error(sigma, target)
@@ -122,30 +120,6 @@ class MissionLaw(Controller):
         self.commanded(error, command[:, : self.m])
         self.k += 1
         return command
-
-    def act_reference(self, obs: np.ndarray) -> np.ndarray:
-        """``act`` through ``law.py``'s numpy functions, its readable definition (the same bits).
-        The ``demand`` hook is the subclass's: the compiled ``fused.rate_limited_demand`` unless
-        put back on ``law.rate_limited_demand``, as the tests and the benchmark do."""
-        heads, valid, gyro, tach, magnetometer, target, time_left = split_observation(self.corrected(obs))
-        sigma = self.fuser.update(heads, valid, gyro, self.context.dt_s)
-        error = attitude_error(sigma, target)
-        demand = self.demand(error, gyro, tach)
-        field = self.field_body(magnetometer, sigma)
-        rod_gain = self.rod_gain()
-        wanted = unloading_dipole(wheel_momentum(tach, self.context), field, self.rods)
-        rods = rod_commands(wanted * self.unloading(time_left), rod_gain, self.rods)
-        rod_torque = cross(rod_gain * rods * self.rods.dipole_max_am2, field)
-        gain, offset, friction = self.wheel_model(tach)
-        matrix = self.nominal if np.all(gain == 1.0) else self.allocation(gain)
-        wheels = allocate(
-            demand - rod_torque - self.disturbance_nm(sigma), matrix, gain, friction, offset, self.wheels
-        )
-        drain = null_space_commands(tach, gain, self.context, self.null_rate_per_s, self.null_target_rad_s)
-        wheels = np.clip(wheels + drain, -1.0, 1.0)
-        self.commanded(error, wheels)
-        self.k += 1
-        return np.concatenate([wheels, rods], axis=1)
 
 
 class PD(MissionLaw):

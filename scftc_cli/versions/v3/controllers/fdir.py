@@ -37,13 +37,12 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import Context
-from scftc_cli.sim.mrp import compose, cross, norm2
-from scftc_cli.sim.products import matmul
+from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.law import friction_nm, vote
 from scftc_cli.versions.v3.controllers import fdir_fused
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
-from scftc_cli.versions.v3.controllers.law import split_observation, wheel_momentum
+from scftc_cli.versions.v3.controllers.law import split_observation
 
 HEALTHY, DEGRADED, FAILED = 0, 1, 2
 
@@ -104,8 +103,10 @@ def rls_update(theta, p, phi, y, forgetting, mask, trace_max):
     """One recursive-least-squares step with forgetting on the rows where ``mask``:
     ``theta (..., d)``, ``p (..., d, d)``, regressor ``phi (..., d)``, measurement ``y (...)``;
     ``p`` is scaled down where its trace exceeds ``trace_max`` (no wind-up when unexcited).
-    Returns new ``(theta, p)``. One numba pass over the rows, the same bits as
-    ``rls_update_reference`` (its numpy definition), for ``d`` of 2 or 3."""
+    Returns new ``(theta, p)``: ``K = P phi / (mu + phi' P phi)``, ``theta += K (y - phi' theta)``,
+    ``P = (P - K phi' P) / mu`` symmetrized, then scaled by ``min(1, trace_max / trace)``. One numba
+    pass over the rows (``fdir_fused.rls_row``), for ``d`` of 2 or 3 (tests/oracles/v3_fdir.py
+    holds a readable numpy form, the same bits)."""
     d = theta.shape[-1]
     lead = theta.shape[:-1]
     new_theta, new_p = np.empty(theta.shape), np.empty(p.shape)
@@ -138,23 +139,6 @@ def _rls_rows(theta, p, phi, y, forgetting, mask, trace_max, out_theta, out_p): 
             for i in range(d):
                 x[i] = phi[r, i]
             fdir_fused.rls_row(out_theta[r], out_p[r], x, y[r], forgetting, trace_max, d, scratch, th, old_p)
-
-
-def rls_update_reference(theta, p, phi, y, forgetting, mask, trace_max):
-    """One recursive-least-squares step with forgetting on the rows where ``mask``:
-    ``theta (..., d)``, ``p (..., d, d)``, regressor ``phi (..., d)``, measurement ``y (...)``;
-    ``p`` is scaled down where its trace exceeds ``trace_max`` (no wind-up when unexcited)."""
-    p_phi = np.einsum("...ij,...j->...i", p, phi)
-    denom = forgetting + np.einsum("...i,...i->...", phi, p_phi)
-    gain = p_phi / denom[..., None]
-    error = y - np.einsum("...i,...i->...", theta, phi)
-    new_theta = theta + gain * error[..., None]
-    new_p = (p - gain[..., :, None] * p_phi[..., None, :]) / forgetting
-    new_p = 0.5 * (new_p + np.swapaxes(new_p, -1, -2))
-    trace = np.trace(new_p, axis1=-2, axis2=-1)
-    new_p = new_p * np.minimum(1.0, trace_max / np.maximum(trace, 1e-300))[..., None, None]
-    mask = np.broadcast_to(np.asarray(mask), error.shape)
-    return np.where(mask[..., None], new_theta, theta), np.where(mask[..., None, None], new_p, p)
 
 
 class FDIR(MissionLaw):
@@ -274,8 +258,12 @@ class FDIR(MissionLaw):
         self.gyro_flag.update(ready & (np.abs(self.gyro_bias).max(axis=1) > t.gyro_tol_rad_s))
 
     def _wheels_and_rods(self, gyro: np.ndarray, tach: np.ndarray, field: np.ndarray) -> None:
-        """The wheel and rod detectors' step: ``_wheels_and_rods_reference`` in one compiled pass
-        (``fdir_fused.wheel_rod_pass``, the same bits), the state updated in place."""
+        """The wheel and rod detectors' step (module docstring), the state updated in place: each
+        wheel's applied torque less the nominal friction, regressed on ``[a, 1]`` where usable, the
+        fast offset observer, the wheels' latches and probe schedule; then the rods' momentum
+        balance while the hub holds still and a rod torques, and the rods' latches. One compiled
+        pass (``fdir_fused.wheel_rod_pass``; tests/oracles/v3_fdir.py holds a readable numpy form,
+        the same bits)."""
         assert self.last is not None
         t, w, last, rods = self.thresholds, self.wheels, self.last, self.rods
         axes = np.ascontiguousarray(w.spin_axes, dtype=np.float64)
@@ -304,76 +292,6 @@ class FDIR(MissionLaw):
             fdir_fused.wheel_rod_pass, *readings, self.k, axes, rod_axes, *plant,
             *settings, *wheel_state, *rod_state, parallel=gyro.shape[0] >= PARALLEL_MIN_BATCH,
         )  # fmt: skip
-
-    def _wheels_and_rods_reference(self, gyro: np.ndarray, tach: np.ndarray, field: np.ndarray) -> None:
-        """The wheel and rod detectors' step in numpy: the definition ``_wheels_and_rods`` compiles."""
-        assert self.last is not None
-        t, w = self.thresholds, self.wheels
-        dt, u_max = self.context.dt_s, w.u_max_nm
-        axes = w.spin_axes
-        d_omega = (gyro - self.last["gyro"]) / dt
-        d_wheel = (tach - self.last["tach"]) / dt
-        applied = w.spin_inertia_kgm2 * (d_wheel + matmul(d_omega, axes.T))  # (n, m) motor + friction
-        friction = 0.5 * (
-            friction_nm(self.last["tach"], w.coulomb_nm, w) + friction_nm(tach, w.coulomb_nm, w)
-        )
-        a = self.last["command"][:, : self.m]
-        y = (applied - friction) / u_max
-        usable = (np.abs(a) < 0.9) & (np.abs(tach) < 0.95 * w.omega_max_rad_s) & (self.k > 2)
-        phi = np.stack([a, np.ones_like(a)], axis=-1)
-        self.theta, self.p = rls_update(self.theta, self.p, phi, y, t.forgetting, usable, 2e4)
-        # a fast disturbance observer of each wheel's offset (bursts come and go within seconds)
-        fast = (1.0 - t.offset_rate) * self.offset_fast + t.offset_rate * (y - self.theta[..., 0] * a)
-        self.offset_fast = np.where(usable, fast, self.offset_fast)
-        known = self.p[..., 0, 0] < t.gain_variance_max
-        g_hat, offset = self.theta[..., 0], self.theta[..., 1]
-        warm = self.k > t.warmup_steps
-        was_failed = self.wheel_failed.raised.copy()
-        quiet = np.abs(self.offset_fast) < t.burst_offset  # not inside a friction burst
-        self.wheel_failed.update(warm & known & quiet & (g_hat < t.dead_gain))
-        # a probe that finds the wheel working (a friction burst fooled the regression) clears it
-        cleared = self.wheel_failed.raised & (self.k == self.probe_until) & (g_hat > t.half_gain)
-        self.wheel_failed.raised &= ~cleared
-        self.wheel_failed.count[cleared] = 0
-        self.wheel_degraded.raised |= cleared
-        # a wheel that looks dead gets no command, so nothing more is learnt of it: probe it when it
-        # first looks dead, and again every reprobe_steps while it does (dead or reversed?)
-        dead_zone = warm & known & (np.abs(g_hat) < t.dead_gain) & t.probe_dead_zone
-        unsure = dead_zone & (self.k % t.reprobe_steps == 0)
-        start = (self.wheel_failed.raised & ~was_failed) | (dead_zone & ~self.dead_zone) | unsure
-        self.dead_zone = dead_zone
-        self.probe_until = np.where(start, self.k + t.probe_steps, self.probe_until)
-        self.wheel_degraded.update(
-            warm & ((known & (np.abs(g_hat - 1.0) > t.gain_tol)) | (np.abs(offset) > t.offset_tol))
-        )
-        # rods: while the hub holds still the wheels absorb the external torque, mostly the rods'
-        dipole = self.last["command"][:, self.m :] * self.rods.dipole_max_am2
-        columns = [cross(dipole[:, j : j + 1] * self.rods.axes[j], self.last["field"]) for j in range(3)]
-        phi_rod = np.stack(columns, axis=-1)  # (n, 3 axes, 3 rods)
-        mean_w = 0.5 * (gyro + self.last["gyro"])
-        torquing = np.abs(dipole).max(axis=1) > 0.1 * self.rods.dipole_max_am2  # else nothing to learn
-        holding = (np.sqrt(norm2(mean_w)) < t.hold_rate_rad_s) & torquing & (self.k > 2)
-        # L = I dw/dt + w x H + sum_i g_i tau_i, with dw/dt ~ 0 and I w small while holding
-        y_rod = matmul(applied, axes) + cross(
-            mean_w, wheel_momentum(0.5 * (tach + self.last["tach"]), self.context)
-        )
-        scale = self.rods.dipole_max_am2 * np.maximum(np.sqrt(norm2(self.last["field"])), 1e-9)[:, None]
-        phi_rod, y_rod = phi_rod / scale[:, :, None], y_rod / scale
-        for row in range(3):
-            self.rod_theta, self.rod_p = rls_update(
-                self.rod_theta,
-                self.rod_p,
-                phi_rod[:, row],
-                y_rod[:, row],
-                t.rod_forgetting ** (1 / 3),
-                holding,
-                30.0,
-            )
-        rods_known = self.rod_p[:, np.arange(3), np.arange(3)] < t.rod_variance_max
-        r_hat = self.rod_theta
-        warm_rods = self.k > 4 * t.warmup_steps
-        self.rod_failed.update(warm_rods & rods_known & (r_hat < t.rod_dead_gain))
-        self.rod_degraded.update(warm_rods & rods_known & (r_hat < t.half_gain))
 
     def _codes(self) -> None:
         m = self.m

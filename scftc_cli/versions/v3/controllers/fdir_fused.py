@@ -1,6 +1,5 @@
-"""``fdir``'s wheel and rod detectors in one compiled pass over the episodes: the same bits as
-``FDIR._wheels_and_rods_reference`` (``fdir.py``, its readable numpy definition), state updated in
-place.
+"""``fdir``'s wheel and rod detectors in one compiled pass over the episodes, state updated in
+place (``tests/oracles/v3_fdir.py`` holds a readable numpy form, which the tests compare with it).
 
 Per episode and step: the torque each wheel applied (tachometers and gyro), its recursive least
 squares on ``[a, 1]``, the fast offset observer, the failed / degraded latches with the probe
@@ -38,8 +37,9 @@ def _sum(v0, v1, v2, d):  # pragma: no cover - compiled
 
 @numba.njit(inline="always")
 def rls_row(theta, p, x, y, forgetting, trace_max, d, p_phi, th, old_p):  # pragma: no cover - compiled
-    """One recursive-least-squares step of one row in place (``fdir.rls_update_reference``'s arithmetic):
-    ``theta (d,)``, ``p (d, d)``, regressor ``x (3,)`` (the first ``d`` used), measurement ``y``;
+    """One recursive-least-squares step of one row in place (``fdir.rls_update``; its numpy oracle
+    is in ``tests/oracles/v3_fdir.py``): ``theta (d,)``, ``p (d, d)``, regressor ``x (3,)`` (the
+    first ``d`` used), measurement ``y``;
     ``p_phi``, ``th`` (3,) and ``old_p`` (3, 3) are scratch."""
     for i in range(d):
         th[i] = theta[i]

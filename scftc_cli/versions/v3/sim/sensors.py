@@ -18,26 +18,26 @@ outage, exactly as v2 blanks an outage (zeros, flag 0.0); the noise streams do n
 
 Each magnetometer gets its own streams, spawned from the episode's noise seed (spawn key ``(1,)``
 for its normals, ``(2,)`` for the spike draws), so the v2 stream (spawn key ``()``) is untouched
-and a faulted cell pairs with its healthy one episode by episode. Normals come in blocks of steps
-(the numbers of one long draw, whatever the block); spike uniforms only for spiking episodes.
+and a faulted cell pairs with its healthy one episode by episode. Each step draws three normals
+of every episode and three spike uniforms of every spiking one (none for the others).
 The magnetometer does not see the rods' own field (a flight magnetometer would sit on a boom or
 sample between torquing pulses).
 
-``observe_reference`` is the readable numpy definition; ``observe`` runs v2's fused kernel and a
-small numba pass for the magnetometer that draws its noise and spikes itself (``sim/pcg64.py``),
-the same operations in the same order: equal to the bit.
+``observe`` runs v2's fused kernel and a small numba pass for the magnetometer that draws its
+noise and spikes itself (``sim/pcg64.py``: the numbers numpy's generators give);
+tests/oracles/v3_sensors.py holds a readable numpy form, the same operations in the same order:
+equal to the bit.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from scftc_cli.sim.pcg64 import next_double, numpy_stream, seeded_states, standard_normal
+from scftc_cli.sim.pcg64 import next_double, seeded_states, standard_normal
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.sim.testbed import Plant, Sensors
 from scftc_cli.versions.v2.sim.faults import SensorFault, sensor_code
@@ -47,7 +47,6 @@ from scftc_cli.versions.v2.spec import V2
 MAGNETOMETER_NOISE_T = 50e-9
 """White noise per axis per sample, 1 sigma (a fluxgate or good AMR magnetometer, ~50 nT)."""
 MAG_CHANNELS = 3
-BLOCK_STEPS = 50
 MAG_NONE, MAG_BIAS, MAG_SPIKE = 0, 1, 2
 
 
@@ -147,48 +146,9 @@ class V3Sensors(Sensors):
         self.spike_probability = np.array(mag.spike_probability, dtype=np.float64)
         self.spike_amount = np.array(mag.spike_amount, dtype=np.float64)
         self.noise_seed = np.ascontiguousarray(episodes.noise_seed, dtype=np.uint32)
-        n = len(self.noise_seed)
         self.rng = seeded_states(self.noise_seed, (NORMALS_KEY,))  # observe's copies of the streams
         self.spike_rng = seeded_states(self.noise_seed, (SPIKES_KEY,))  # read only where spiking
         self.next_step = 0  # the step observe reads next
-        self.spike_rows = np.flatnonzero(self.spiking)
-        self.block = np.empty((n, BLOCK_STEPS, MAG_CHANNELS))
-        self.spike_block = np.ones((n, BLOCK_STEPS, MAG_CHANNELS))  # 1.0 never spikes (p < 1)
-        self.block_start = -BLOCK_STEPS
-
-    @functools.cached_property
-    def streams(self) -> list[np.random.Generator]:
-        """``magnetometer_reference``'s numpy generators of the normals (``observe`` draws the same
-        numbers from its own copies, ``rng``)."""
-        return [numpy_stream(seed, (NORMALS_KEY,)) for seed in self.noise_seed]
-
-    @functools.cached_property
-    def spike_streams(self) -> list[np.random.Generator]:
-        """``magnetometer_reference``'s generators of the spike uniforms, spiking episodes only."""
-        return [numpy_stream(self.noise_seed[e], (SPIKES_KEY,)) for e in self.spike_rows]
-
-    def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(n, 3)`` standard normals and ``(n, 3)`` spike uniforms of step ``k`` (in order)."""
-        if not self.block_start <= k < self.block_start + BLOCK_STEPS:
-            if k != self.block_start + BLOCK_STEPS:
-                raise ValueError(f"sensors are read step by step; step {k} follows {self.block_start}")
-            for e, stream in enumerate(self.streams):
-                stream.standard_normal(out=self.block[e])
-            for row, stream in zip(self.spike_rows, self.spike_streams, strict=True):
-                stream.random(out=self.spike_block[row])
-            self.block_start = k
-        j = k - self.block_start
-        return self.block[:, j], self.spike_block[:, j]
-
-    def magnetometer_reference(self, k: int, field_b_t: np.ndarray) -> np.ndarray:
-        """The magnetometer's ``(n, 3)`` readings of the true body field ``field_b_t`` ``(n, 3)``:
-        ``((B + noise) + bias)``, the bias 0.0 unless in force (added all the same), then the
-        spikes (Basilisk's order: noise, bias, faults)."""
-        z, uniform = self._draws(k)
-        faulted = (k >= self.onset)[:, None]
-        out = (field_b_t + self.noise_t * z) + np.where(faulted & self.biased[:, None], self.bias_t, 0.0)
-        spike = faulted & self.spiking[:, None] & (uniform <= self.spike_probability)
-        return np.where(spike, out * self.spike_amount, out)
 
     def _blank(self, k: int, head: np.ndarray) -> np.ndarray:
         """``head`` ``(n, 19)`` with every head zero and invalid where an outage is in force at
@@ -196,11 +156,6 @@ class V3Sensors(Sensors):
         out = np.flatnonzero(self.outage & (self.onset <= k) & (k < self.outage_end))
         head[out, : 4 * self.v2.heads] = 0.0  # each head's MRP (3 values), then each one's flag
         return head
-
-    def observe_reference(self, k: int, plant: Plant) -> np.ndarray:
-        """``observe`` as numpy array operations: the readable definition, equal to the bit."""
-        head = self._blank(k, self.v2.observe_reference(k, plant))
-        return np.concatenate([head, self.magnetometer_reference(k, plant.states()["field_b_t"])], axis=1)
 
     def observe(self, k: int, plant: Plant) -> np.ndarray:
         """``(n, 22)`` observation of the plant's true state at the start of step ``k`` (steps are
@@ -224,7 +179,9 @@ class V3Sensors(Sensors):
 def _magnetometer_kernel(
     k, field, rng, spike_rng, onset, biased, spiking, bias, probability, amount, scale, out, col
 ):  # pragma: no cover - compiled
-    """``magnetometer_reference`` of every episode of step ``k`` into ``out[:, col:col + 3]``,
+    """The magnetometer's readings of the true body field ``field`` ``(n, 3)`` at step ``k`` into
+    ``out[:, col:col + 3]``: ``((B + noise) + bias)``, the bias 0.0 unless in force (added all the
+    same), then the spikes (Basilisk's order: noise, bias, faults). Every episode of the step,
     drawing the step's three normals of every episode and three uniforms of every spiking one
     (``sim/pcg64.py``: the numbers numpy's generators give, in the same order; each episode's
     own streams, so the rows are independent)."""

@@ -1,8 +1,9 @@
-"""``fdir``'s wheel detector (v2) compiled gives the bits of its numpy form: ``WheelMonitor.observe``
-(``_observe_rows``) flown in lockstep with ``observe_reference`` through faults that alarm, confirm
-changes and kill wheels, through clipped commands, speed-limited wheels and zero crossings, and
-through a NaN reading (skipped by both); the ridge solve and clamp (``solved``, ``clamped``)
-against their numpy forms, on values that pin every bound, signed zeros and infinite covariances."""
+"""``fdir``'s wheel detector (v2) compiled gives the bits of its numpy form
+(``tests/oracles/v2_detection.py``): ``WheelMonitor.observe`` (``_observe_rows``) flown in lockstep
+with the numpy ``observe`` through faults that alarm, confirm changes and kill wheels, through
+clipped commands, speed-limited wheels and zero crossings, and through a NaN reading (skipped by
+both); the ridge solve and clamp (``solved``, ``clamped``) against their numpy forms, on values
+that pin every bound, signed zeros and infinite covariances."""
 
 from __future__ import annotations
 
@@ -11,16 +12,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from scftc_cli.versions.v2.controllers.detection import (
-    WheelMonitor,
-    clamp,
-    clamped,
-    solved,
-    solved_reference,
-)
+from scftc_cli.versions.v2.controllers.detection import WheelMonitor, clamped, solved
 from scftc_cli.versions.v2.controllers.fdir import load_fdir_params
 from scftc_cli.versions.v2.sim.testbed import public_context
 from tests.bits import bits
+from tests.oracles import v2_detection as oracle
 
 CONTEXT = public_context(1)
 SENSORS, WHEELS, DT = CONTEXT.sensors, CONTEXT.wheels, CONTEXT.dt_s
@@ -31,8 +27,8 @@ VISCOUS = dataclasses.replace(WHEELS, viscous_nms=2e-6)  # the flight's wheels h
 class NumpyMonitor(WheelMonitor):
     """The detector on its numpy definitions."""
 
-    observe = WheelMonitor.observe_reference
-    solver = staticmethod(solved_reference)
+    observe = oracle.observe
+    solver = staticmethod(oracle.solved)
 
 
 STATE = ("theta", "cov", "A", "y", "prior", "prior_weight", "cusum", "since_zero", "isolated", "dead")
@@ -107,7 +103,7 @@ def _solve_inputs(rng: np.random.Generator, shape: tuple[int, ...]) -> tuple[np.
 @pytest.mark.parametrize("shape", [(1, 1), (7, 4), (300, 4)])
 def test_the_compiled_solve_and_clamp_give_the_bits_of_numpy(shape: tuple[int, int]) -> None:
     A, y, weight, prior = _solve_inputs(np.random.default_rng(sum(shape)), shape)
-    for got, want in zip(solved(A, y, weight, prior), solved_reference(A, y, weight, prior), strict=True):
+    for got, want in zip(solved(A, y, weight, prior), oracle.solved(A, y, weight, prior), strict=True):
         np.testing.assert_array_equal(bits(got), bits(want))
 
 
@@ -128,7 +124,7 @@ def test_the_clamp_moves_every_row_when_one_moves_as_numpy_does() -> None:
         if pinned is not None:
             t[pinned] = 7.5  # past its bound
         with np.errstate(invalid="ignore"):  # inf * 0.0, as intended
-            want_theta, want_cov = clamp(t.copy(), c.copy())
+            want_theta, want_cov = oracle.clamp(t.copy(), c.copy())
         clamped(t, c)
         np.testing.assert_array_equal(bits(t), bits(want_theta))
         np.testing.assert_array_equal(bits(c), bits(want_cov))

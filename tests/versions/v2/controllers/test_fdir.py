@@ -20,7 +20,6 @@ from scftc_cli.versions.v2.controllers.detection import (
     DetectorSettings,
     WheelMonitor,
     friction_shape,
-    friction_shape_reference,
 )
 from scftc_cli.versions.v2.controllers.fdir import FDIR, load_fdir_params
 from scftc_cli.versions.v2.controllers.law import rotation_mrp, vote
@@ -29,6 +28,7 @@ from scftc_cli.versions.v2.sim.dynamics import friction_torque_nm
 from scftc_cli.versions.v2.sim.faults import WheelEpisodes
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
 from scftc_cli.versions.v2.spec import V2
+from tests.oracles import v2_detection as oracle
 
 CONTEXT = public_context(1)
 SENSORS, WHEELS, DT = CONTEXT.sensors, CONTEXT.wheels, CONTEXT.dt_s
@@ -237,7 +237,7 @@ def test_friction_shape_is_its_numpy_reference_to_the_bit():
     coulomb = WHEELS.coulomb_nm * rng.uniform(1.0, 60.0, (n, m))
     for iterations in (8, 1):  # one Newton step leaves some wheels unconverged
         fused = friction_shape(start, end, coulomb, WHEELS, DT, iterations)
-        reference = friction_shape_reference(start, end, coulomb, WHEELS, DT, iterations)
+        reference = oracle.friction_shape(start, end, coulomb, WHEELS, DT, iterations)
         for got, want in zip(fused, reference, strict=True):
             np.testing.assert_array_equal(got, want)
     assert fused[2].any() and not fused[2].all()  # both outcomes of the convergence test

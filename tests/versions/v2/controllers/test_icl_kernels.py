@@ -1,6 +1,6 @@
 """``icl_adaptive``'s stack curation (v2) with its candidates scored in two passes (``_offer_rows``:
 the arithmetic vectorized, then the transcendental calls) gives the bits of scoring them one at a
-time (``_offer_rows_reference``): stacks filling and full, windows that replace and that do not,
+time (``tests/oracles/v2_icl.py``): stacks filling and full, windows that replace and that do not,
 degenerate stacks (every window the same: the closed form's equal-eigenvalue case) and collinear
 offset and friction (``s = +-1`` throughout)."""
 
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from scftc_cli.versions.v2.controllers.icl import (
-    _offer_rows_reference,
     _score,
     _score_finish,
     _score_setup,
     stack_offer,
 )
+from tests.oracles import v2_icl as oracle
 
 
 @numba.njit(error_model="numpy")
@@ -66,7 +66,7 @@ def test_two_pass_curation_gives_the_bits_of_scoring_one_candidate_at_a_time(n: 
         offer = rng.random((n, m)) < 0.8
         before = ys.copy()
         stack_offer(ys, us, used, y, u, offer, 1.0)
-        _offer_rows_reference(*ref, y, u, offer, 1.0)
+        oracle._offer_rows(*ref, y, u, offer, 1.0)
         for got, want in zip((ys, us, used), ref, strict=True):
             assert np.array_equal(
                 got.view(np.int64) if got.dtype == np.float64 else got,

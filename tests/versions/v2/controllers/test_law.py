@@ -14,11 +14,11 @@ from scftc_cli.versions.v2.controllers.law import (
     allocate,
     allocation,
     friction_nm,
-    fuse_reference,
     split_observation,
     torque_demand,
 )
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
+from tests.oracles import v2_law as oracle
 
 WHEELS = public_context(1).wheels
 
@@ -43,7 +43,7 @@ def test_the_numba_fuser_is_the_numpy_reference_bit_for_bit():
             heads[:50] / np.linalg.norm(heads[:50], axis=-1, keepdims=True).clip(1e-9) * 1.0000001
         )
         got = fuser.update(heads, valid, gyro, 0.5)
-        sigma = fuse_reference(sigma, heads, valid, gyro, last, 0.5)
+        sigma = oracle.fuse(sigma, heads, valid, gyro, last, 0.5)
         last = gyro
         np.testing.assert_array_equal(got, sigma)
 
@@ -55,7 +55,7 @@ def test_the_fuser_on_benchmark_observations_equals_the_reference():
     for k in range(150):
         heads, valid, gyro, _ = split_observation(sensors.observe(k, plant))
         got = fuser.update(heads, valid, gyro, 0.5)
-        sigma = fuse_reference(sigma, heads, valid, gyro, last, 0.5)
+        sigma = oracle.fuse(sigma, heads, valid, gyro, last, 0.5)
         last = gyro
         np.testing.assert_array_equal(got, sigma)
         plant.step(k, np.zeros((episodes.n, 4)))
@@ -155,7 +155,7 @@ def test_the_compiled_vote_is_its_numpy_definition_bit_for_bit():
     aligned[::13] = np.where(aligned[::13] < 0, -0.0, 0.0)
     valid = rng.random((n, 3)) < 0.6
     got, count = law.vote(aligned, valid)
-    want, count_want = law.vote_reference(aligned, valid)
+    want, count_want = oracle.vote(aligned, valid)
     np.testing.assert_array_equal(count, count_want)
     assert set(np.unique(count)) == {0, 1, 2, 3}
     assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the bits, signed zeros included

@@ -11,10 +11,10 @@ import pytest
 
 from scftc_cli.sim.mrp import compose
 from scftc_cli.versions.v2.controllers.fdir import load_fdir_params, pseudo_inverse3
-from scftc_cli.versions.v2.controllers.law import pseudo_inverse_reference
-from scftc_cli.versions.v2.controllers.mekf import MEKF, inv3, inv3_reference
+from scftc_cli.versions.v2.controllers.mekf import MEKF, inv3
 from scftc_cli.versions.v2.sim.testbed import public_context
 from tests.bits import bits
+from tests.oracles import v2_law, v2_mekf
 
 CONTEXT = public_context(1)
 SENSORS, DT = CONTEXT.sensors, CONTEXT.dt_s
@@ -24,9 +24,9 @@ assert SENSORS is not None
 class NumpyMEKF(MEKF):
     """The filter on its numpy definitions."""
 
-    _propagate = MEKF._propagate_reference
-    _update = MEKF._update_reference
-    _head_tests = MEKF._head_tests_reference
+    _propagate = v2_mekf._propagate
+    _update = v2_mekf._update
+    _head_tests = v2_mekf._head_tests
 
 
 @pytest.mark.parametrize("n", [1, 13, 5_003])  # one episode, a few, past the parallel threshold
@@ -83,7 +83,7 @@ def test_the_compiled_head_tests_give_the_bits_of_their_numpy_definition(n: int)
     candidate = rng.random((n, 3)) < 0.8
     got = compiled._head_tests(heads, candidate)
     with np.errstate(invalid="ignore"):
-        want = MEKF._head_tests_reference(compiled, heads, candidate)
+        want = v2_mekf._head_tests(compiled, heads, candidate)
     for a, b in zip(got, want, strict=True):
         assert a.shape == b.shape
         np.testing.assert_array_equal(bits(a), bits(b))
@@ -103,7 +103,7 @@ def test_the_compiled_adjugate_inverse_gives_the_bits_of_its_numpy_definition(sh
         flat[1, 0, 1] = -0.0
         flat[2] = np.diag([1.0, 2.0, 4.0])
     with np.errstate(divide="ignore", invalid="ignore"):
-        got, want = inv3(m), inv3_reference(m)
+        got, want = inv3(m), v2_mekf.inv3(m)
     assert got.shape == want.shape == m.shape
     np.testing.assert_array_equal(bits(got), bits(want))
 
@@ -120,5 +120,5 @@ def test_fdirs_allocation_gives_the_bits_of_its_numpy_definition(n: int) -> None
     matrix = axes.T[None, :, :] * gain[:, None, :]
     with np.errstate(divide="ignore", invalid="ignore"):  # a row with every wheel dead: NaN, both
         got = pseudo_inverse3(matrix)
-        want = pseudo_inverse_reference(matrix, 1e-12, inv3_reference, floor_zero_trace=False)
+        want = v2_law.pseudo_inverse(matrix, 1e-12, v2_mekf.inv3, floor_zero_trace=False)
     np.testing.assert_array_equal(bits(got), bits(want))

@@ -7,6 +7,7 @@ import pytest
 
 from scftc_cli.versions.v2.controllers.observer import OffsetObserver
 from scftc_cli.versions.v2.controllers.student import ObserverConfig
+from tests.oracles import v2_observer as oracle
 
 
 @pytest.mark.parametrize("n", [1, 7, 5_003])  # one episode, a few, past the parallel threshold
@@ -25,7 +26,7 @@ def test_the_compiled_update_gives_the_bits_of_its_numpy_definition(n: int) -> N
             compiled.restart(restart)
             reference.restart(restart)
         compiled.update(residual, psi, valid)
-        reference.update_reference(residual, psi, valid)
+        oracle.update(reference, residual, psi, valid)
         np.testing.assert_array_equal(compiled.theta.view(np.int64), reference.theta.view(np.int64))
         np.testing.assert_array_equal(compiled.p.view(np.int64), reference.p.view(np.int64))
     assert np.abs(compiled.theta).max() > 0.0  # it did learn something

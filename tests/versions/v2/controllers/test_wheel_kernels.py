@@ -8,20 +8,11 @@ import numpy as np
 import pytest
 
 from scftc_cli.versions.v2.controllers.latch import WheelLatch
-from scftc_cli.versions.v2.controllers.law import (
-    friction_nm,
-    friction_nm_reference,
-    pseudo_inverse,
-    pseudo_inverse_reference,
-)
-from scftc_cli.versions.v2.controllers.student import (
-    N_FEATURES,
-    LatchConfig,
-    wheel_features,
-    wheel_features_reference,
-)
+from scftc_cli.versions.v2.controllers.law import friction_nm, pseudo_inverse
+from scftc_cli.versions.v2.controllers.student import N_FEATURES, LatchConfig, wheel_features
 from scftc_cli.versions.v2.sim.testbed import public_context
 from tests.bits import bits
+from tests.oracles import v2_latch, v2_law, v2_student
 
 
 def _awkward(rng: np.random.Generator, shape: tuple[int, int], scale: float) -> np.ndarray:
@@ -44,7 +35,7 @@ def test_the_compiled_features_give_the_bits_of_their_numpy_definition(n: int) -
         after_alarm = (rng.random(shape) < 0.2).astype(float)
         flags = [rng.random(shape) < p for p in (0.2, 0.7, 0.5)]
         compiled = wheel_features(*floats, after_alarm, *flags)
-        reference = wheel_features_reference(*floats, after_alarm, *flags)
+        reference = v2_student.wheel_features(*floats, after_alarm, *flags)
         assert compiled.shape == (n * 4, N_FEATURES)
         np.testing.assert_array_equal(bits(compiled), bits(reference))
 
@@ -79,7 +70,7 @@ def test_the_compiled_latch_gives_the_bits_of_its_numpy_definition(n: int) -> No
             restart = rng.random((n, 4)) < 0.3
             compiled.restart(restart)
             reference.restart(restart)
-        got, want = compiled.update(raw, excitation), reference.update_reference(raw, excitation)
+        got, want = compiled.update(raw, excitation), v2_latch.update(reference, raw, excitation)
         np.testing.assert_array_equal(bits(got), bits(want))
         np.testing.assert_array_equal(compiled.latched, reference.latched)
         np.testing.assert_array_equal(compiled.count, reference.count)
@@ -114,7 +105,7 @@ def test_the_compiled_friction_gives_the_bits_of_its_numpy_definition(coulomb: o
         "negative": -rng.normal(5e-4, 1e-4, (n, 4)),
     }.get(str(coulomb), coulomb)
     with np.errstate(invalid="ignore"):
-        got, want = friction_nm(speed, levels, wheels), friction_nm_reference(speed, levels, wheels)
+        got, want = friction_nm(speed, levels, wheels), v2_law.friction_nm(speed, levels, wheels)
     assert got.shape == want.shape == (n, 4)
     np.testing.assert_array_equal(bits(got), bits(want))
 
@@ -133,7 +124,7 @@ def test_the_compiled_allocation_gives_the_bits_of_its_numpy_definition(wheels: 
     gain[rng.random((n, wheels)) < 0.05] = -0.0
     gain[: min(n, 2)] = 0.0
     matrix = axes.T[None, :, :] * gain[:, None, :]
-    got, want = pseudo_inverse(matrix), pseudo_inverse_reference(matrix)
+    got, want = pseudo_inverse(matrix), v2_law.pseudo_inverse(matrix)
     assert got.shape == want.shape == (n, wheels, 3)
     np.testing.assert_array_equal(bits(got), bits(want))
     assert np.isfinite(got).all()

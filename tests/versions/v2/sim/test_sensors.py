@@ -9,9 +9,11 @@ import pytest
 
 from scftc_cli.protocol import Context
 from scftc_cli.sim.mrp import compose, principal_angle_deg
-from scftc_cli.versions.v2.sim.sensors import BLOCK_STEPS, HeadsGyroTachometers
+from scftc_cli.versions.v2.sim.sensors import HeadsGyroTachometers
 from scftc_cli.versions.v2.sim.testbed import TESTBED, public_context
 from scftc_cli.versions.v2.spec import V2
+from tests.oracles import v2_sensors as oracle
+from tests.oracles.v2_sensors import BLOCK_STEPS
 
 HEADS, VALID, GYRO, TACH = slice(0, 9), slice(9, 12), slice(12, 15), slice(15, 19)
 
@@ -146,9 +148,9 @@ def test_the_context_crosses_the_sandbox_boundary_intact():
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_observe_is_its_numpy_reference_to_the_bit(parallel: bool, monkeypatch):
-    """``observe`` (numba, noise drawn in the kernel) against ``observe_reference`` (numpy arrays,
-    noise from numpy's generators), on a moving plant, every sensor fault, whole episodes; the
-    threaded kernel too (forced on a small batch)."""
+    """``observe`` (numba, noise drawn in the kernel) against its numpy form
+    (``tests/oracles/v2_sensors.py``: numpy arrays, noise from numpy's generators), on a moving
+    plant, every sensor fault, whole episodes; the threaded kernel too (forced on a small batch)."""
     from scftc_cli.versions.v2.sim import sensors as module
 
     monkeypatch.setattr(module, "PARALLEL_MIN_BATCH", 1 if parallel else 10**9)
@@ -159,7 +161,5 @@ def test_observe_is_its_numpy_reference_to_the_bit(parallel: bool, monkeypatch):
         plant = TESTBED.plant(episodes, "numpy")
         for k in range(V2.steps):
             obs = fused.observe(k, plant)
-            np.testing.assert_array_equal(
-                obs, reference.observe_reference(k, plant), err_msg=f"{sensor}, {k}"
-            )
+            np.testing.assert_array_equal(obs, oracle.observe(reference, k, plant), err_msg=f"{sensor}, {k}")
             plant.step(k, np.tanh(obs[:, 15:19] / 300.0))

@@ -1,6 +1,6 @@
 """The compiled mission law (``controllers/fused.py``) and ``fdir``'s compiled least squares give
-the same bits as their numpy definitions (``law.py``, ``MissionLaw.act_reference``,
-``fdir.rls_update_reference``): piece by piece on random rows, and over whole rollouts of every v3
+the same bits as their numpy definitions (``law.py``, ``tests/oracles/v3_analytic.py``,
+``tests/oracles/v3_fdir.py``): piece by piece on random rows, and over whole rollouts of every v3
 controller that flies the law, one episode alone (numpy's single-row sums) and a batch."""
 
 from __future__ import annotations
@@ -10,11 +10,12 @@ import pytest
 
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.versions.v2.controllers.law import allocate, allocation, friction_nm, vote_reference
+from scftc_cli.versions.v2.controllers.law import allocate, allocation, friction_nm
 from scftc_cli.versions.v2.controllers.pid import PIDParams
 from scftc_cli.versions.v2.controllers.rls import RLSParams
 from scftc_cli.versions.v3.controllers import analytic, fdir, fused, law, pid, rls
 from scftc_cli.versions.v3.spec import V3
+from tests.oracles import v2_law, v3_analytic, v3_fdir
 
 BED = testbeds.testbed("scftc-v3")
 
@@ -73,7 +74,7 @@ def test_fdirs_compiled_least_squares_step_is_its_numpy_definition(lead):
     y, mask = rng.normal(size=lead), rng.random(lead) < 0.7
     for forgetting, trace_max in ((0.99, 2e4), (0.998 ** (1 / 3), 30.0), (0.9, 1.0)):
         got = fdir.rls_update(theta, p, phi, y, forgetting, mask, trace_max)
-        want = fdir.rls_update_reference(theta, p, phi, y, forgetting, mask, trace_max)
+        want = v3_fdir.rls_update(theta, p, phi, y, forgetting, mask, trace_max)
         for a, b in zip(got, want, strict=True):
             np.testing.assert_array_equal(a, b)
     assert not np.array_equal(got[1], p) and np.array_equal(got[1][~mask], p[~mask])
@@ -91,10 +92,10 @@ CONTROLLERS = {
 
 def _numpy_law(monkeypatch):
     """Every controller's law back on ``law.py``'s numpy functions."""
-    monkeypatch.setattr(analytic.MissionLaw, "act", analytic.MissionLaw.act_reference)
-    monkeypatch.setattr(fdir, "rls_update", fdir.rls_update_reference)
-    monkeypatch.setattr(fdir.FDIR, "_wheels_and_rods", fdir.FDIR._wheels_and_rods_reference)
-    monkeypatch.setattr(fdir, "vote", vote_reference)
+    monkeypatch.setattr(analytic.MissionLaw, "act", v3_analytic.act)
+    monkeypatch.setattr(fdir, "rls_update", v3_fdir.rls_update)
+    monkeypatch.setattr(fdir.FDIR, "_wheels_and_rods", v3_fdir._wheels_and_rods)
+    monkeypatch.setattr(fdir, "vote", v2_law.vote)
     for module in (fused, pid, rls):
         monkeypatch.setattr(module, "rate_limited_demand", law.rate_limited_demand)
 
@@ -139,7 +140,7 @@ def test_fdirs_compiled_wheel_and_rod_detectors_report_what_their_numpy_definiti
         compiled = _Reporting()
         rollout(compiled, batch)
         with monkeypatch.context() as patch:
-            patch.setattr(fdir.FDIR, "_wheels_and_rods", fdir.FDIR._wheels_and_rods_reference)
+            patch.setattr(fdir.FDIR, "_wheels_and_rods", v3_fdir._wheels_and_rods)
             reference = _Reporting()
             rollout(reference, batch)
         np.testing.assert_array_equal(np.stack(compiled.reports), np.stack(reference.reports))

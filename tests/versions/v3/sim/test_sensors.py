@@ -17,6 +17,7 @@ from scftc_cli.versions.v3.sim.sensors import (
     SensorEpisodes,
     V3Sensors,
 )
+from tests.oracles import v3_sensors as oracle
 from tests.versions.v3.sim.demo import random_plant_args, random_sensor_episodes
 
 
@@ -31,7 +32,7 @@ def _fly(n: int, steps: int, seed: int, episodes=None, reference: bool = False):
     cmd = np.zeros((n, 7))
     for k in range(steps):
         fields.append(plant.field_b_t.copy())
-        obs.append(sensors.observe_reference(k, plant) if reference else sensors.observe(k, plant))
+        obs.append(oracle.observe(sensors, k, plant) if reference else sensors.observe(k, plant))
         plant.step(k, cmd)
     return np.array(obs), np.array(fields), episodes
 

@@ -1,0 +1,1 @@
+"""Readable numpy forms of the compiled kernels: oracles for the tests, never a production path."""
