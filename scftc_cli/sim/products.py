@@ -96,3 +96,22 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if vector_a:
         out = out[..., 0, :] if not vector_b else out[..., 0]
     return out
+
+
+def split_matvec3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``m @ v`` for stacks ``m`` ``(n, k, 3)`` and ``v`` ``(n, 3)``, each output ``split_dot3``'s
+    order, ``(m0 v0 + m2 v2) + m1 v1`` then +0.0, in numpy's element-wise arithmetic: ``(n, k)``."""
+    m, v = np.asarray(m, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    if m.shape[-1] != 3 or v.shape[-1] != 3:
+        raise ValueError(f"split_matvec3: a three-term product, got {m.shape} and {v.shape}")
+    v = v[..., None, :]
+    return 0.0 + ((m[..., 0] * v[..., 0] + m[..., 2] * v[..., 2]) + m[..., 1] * v[..., 1])
+
+
+def sum_rows(x: np.ndarray) -> np.ndarray:
+    """The sum over axis 1 of ``x`` ``(n, k, ...)``, left to right from the first term:
+    ``((x0 + x1) + x2) + ...``."""
+    total = x[:, 0]
+    for i in range(1, x.shape[1]):
+        total = total + x[:, i]
+    return total

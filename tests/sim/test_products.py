@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim.elementary import fma
-from scftc_cli.sim.products import chain3, chain4, matmul, split_dot3
+from scftc_cli.sim.products import chain3, chain4, matmul, split_dot3, split_matvec3, sum_rows
 
 
 def _round(value: Fraction) -> float:
@@ -107,3 +107,14 @@ def test_the_order_matters():
     x, b = _rows(rng, 10_000, 4), rng.normal(size=(4, 3))
     p = x[:, :, None] * b[None]
     assert ((((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) != matmul(x, b)).mean() > 0.1
+
+
+def test_split_matvec3_and_sum_rows_are_their_stated_orders():
+    rng = np.random.default_rng(11)
+    m, v = _rows(rng, 200, 4, 3), _rows(rng, 200, 3)
+    p = m * v[:, None, :]
+    np.testing.assert_array_equal(split_matvec3(m, v), 0.0 + ((p[..., 0] + p[..., 2]) + p[..., 1]))
+    x = _rows(rng, 200, 3, 2)
+    np.testing.assert_array_equal(sum_rows(x), (x[:, 0] + x[:, 1]) + x[:, 2])
+    with pytest.raises(ValueError, match="three-term"):
+        split_matvec3(m[..., :2], v[:, :2])

@@ -28,7 +28,7 @@ import numpy as np
 from scftc_cli.errors import UsageError
 from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import cross, norm2
-from scftc_cli.sim.products import chain4, chain_entry, matmul, split_dot3
+from scftc_cli.sim.products import chain4, chain_entry, matmul, split_dot3, split_matvec3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import linalg_inv
 
@@ -369,7 +369,7 @@ def allocate(
     dead_friction = matmul(np.where(working, 0.0, friction_hat_nm), wheels.spin_axes)
     target = -(demand_nm + dead_friction) / u_max
     cancel = (np.asarray(bias_hat) + friction_hat_nm / u_max) / np.where(working, gain_hat, 1.0)
-    command = np.einsum("nij,nj->ni", allocation_matrix, target) - np.where(working, cancel, 0.0)
+    command = split_matvec3(allocation_matrix, target) - np.where(working, cancel, 0.0)
     return np.clip(command, -1.0, 1.0)
 
 

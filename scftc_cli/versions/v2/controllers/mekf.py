@@ -40,7 +40,7 @@ import numpy as np
 from scftc_cli.protocol import SensorKnowledge
 from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.mrp_fused import compose_row, norm2_row
-from scftc_cli.sim.products import chain_entry, split_dot3
+from scftc_cli.sim.products import chain_entry, matmul, split_dot3, sum_rows
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import inverse3
 from scftc_cli.versions.v2.controllers.law import nearest_branch, nearest_branch_row, rotation_mrp, vote
@@ -106,7 +106,7 @@ def rotation_matrix(phi: np.ndarray) -> np.ndarray:
     a = np.where(small, 1.0 - angle2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - angle2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
     k = skew(phi)
-    return np.eye(3) - a[:, None, None] * k + b[:, None, None] * (k @ k)
+    return np.eye(3) - a[:, None, None] * k + b[:, None, None] * matmul(k, k)
 
 
 def rotation_vector(sigma: np.ndarray) -> np.ndarray:
@@ -260,13 +260,13 @@ class MEKF:
         self.common_run = np.where(common, self.common_run + 1, 0)
         reopen = self.common_run >= s.isolate_after
         if reopen.any():
-            spread = (norm2(nu) * used).sum(axis=1) / np.maximum(used.sum(axis=1), 1)
+            spread = sum_rows(norm2(nu) * used) / np.maximum(used.sum(axis=1), 1)
             self.P[reopen, :3, :3] += spread[reopen, None, None] * np.eye(3)
             self.P[reopen, 3:, 3:] += s.step_inflation**2 * np.eye(3)
             self.common_run = np.where(reopen, 0, self.common_run)
         self.used = used
         count = used.sum(axis=1)
-        nu_mean = (nu * used[:, :, None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+        nu_mean = sum_rows(nu * used[:, :, None]) / np.maximum(count, 1)[:, None]
         z = self._update(nu_mean, count)
         self._bias_step_test(z, count > 0)
         self.k += 1
