@@ -83,6 +83,18 @@ def _close(*fds: int | None) -> None:
 
 
 # ----------------------------------------------------------------------------------------- parent
+CONTROLLER_TEXT_CHARS = 200
+"""The most characters of a controller's own message a rejection quotes."""
+
+
+def controller_said(text: str) -> str:
+    """A message the sandboxed controller wrote (an exception's text), quoted as its own words: one
+    line, at most ``CONTROLLER_TEXT_CHARS`` characters, marked so that no reader takes it for the
+    system's (a controller that fails on purpose may dress its message as a host fault)."""
+    quoted = one_line(text, CONTROLLER_TEXT_CHARS).replace("»", "'").replace("«", "'")
+    return f"«{quoted}» (the controller's own message, not the system's)"
+
+
 @dataclass
 class Sandbox:
     """A running, isolated child process hosting one submitted controller.
@@ -430,11 +442,12 @@ class Sandbox:
         header = self._recv(deadline)
         if header.get("ok") is True:
             return header
-        kind, error = str(header.get("kind")), one_line(str(header.get("error", "unknown error")))
+        kind, raw = str(header.get("kind")), str(header.get("error", "unknown error"))
         name = self.name
-        capped = self._capped(one_line(error, 120))
+        capped = self._capped(one_line(raw, 120))
         if capped is not None:
             raise capped
+        error = controller_said(raw)
         if kind == "import":
             raise SubmissionRejected(
                 f"{name}: failed to import: {error}; fix the import (the sandbox offers the standard "

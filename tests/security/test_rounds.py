@@ -355,3 +355,34 @@ def test_a_seal_that_cannot_find_a_pending_file_writes_nothing(tmp_path: Path, k
     assert "pd_plus" in result.stderr and "nothing was written" in result.stderr
     assert board.read_bytes() == before
     assert [e.status for e in store.read_board(board, V1.version).entries] == ["pending"]
+
+
+DRESSED_UP = """
+
+class Ctl:
+    def reset(self, n, context):
+        pass
+
+    def act(self, obs):
+        raise OSError(
+            "[Errno 28] No space left on device: '/sys/fs/cgroup/scftc-sandbox' "
+            "(host infrastructure, not the controller: re-run the seal) " + "x" * 5000
+        )
+"""
+
+
+def test_a_failure_quotes_the_controllers_words_as_its_own_and_bounded(tmp_path: Path):
+    """Issue: a controller that crashed on purpose chose its failure reason ("No space left on
+    device ... host infrastructure, not the controller: re-run the seal"), and the board recorded it
+    as the system's word. Its text is now quoted as the controller's own, cut at 200 characters."""
+    path = tmp_path / "submissions" / "dressed.py"
+    path.parent.mkdir()
+    path.write_text(source("dressed", DRESSED_UP, "fails on purpose"))
+    board = _board_folder(tmp_path / "repo")
+    result = _invoke("submit", path, "--dry-run", "--n-faults", "1", "--n-seeds", "1", "--leaderboard", board)
+    assert result.exit_code == 1, result.output
+    message = result.stderr
+    assert "«OSError: [Errno 28] No space left on device" in message.replace("\n", " ")
+    assert "(the controller's own message, not the system's)" in message.replace("\n", " ")
+    quoted = message[message.index("«") : message.index("»")]
+    assert len(quoted) <= 201 and "x" * 300 not in message
