@@ -152,11 +152,24 @@ def _relative_source(path: Path, root: Path) -> str:
 
 
 def taken_names(board: Leaderboard) -> set[str]:
-    return {e.name for e in board.entries if e.status != "failed"} | builtin_names()
+    """Every name on the board, failed entries' included (a name's first sealed attempt is its
+    result: ``_check_name_free``), and every built-in's."""
+    return {e.name for e in board.entries} | builtin_names()
 
 
 def _check_name_free(sub: Submission, board: Leaderboard, board_path: Path) -> None:
+    """One name, one attempt at a seal: the attempts of an entry are linked by its name, and the
+    first one a seal decides (sealed or failed) is the one the board keeps and ranks. A failure is
+    that result: a controller that fails on purpose at its seal (to veto a draw it guessed was
+    unlucky) cannot come back under the same name for a fresh draw."""
     name = sub.manifest.name
+    failed = next((e for e in board.entries if e.name == name and e.status == "failed"), None)
+    if failed is not None:
+        raise SubmissionRejected(
+            f"{sub.path.name}: `{name}` failed at the seal of round {failed.round} on {board_path}, and a "
+            "name's first sealed attempt is its result (docs/submitting.md); a changed controller is a "
+            "new entry: choose another SUBMISSION['name']"
+        )
     if name in taken_names(board):
         where = "a built-in controller" if name in builtin_names() else f"already on {board_path}"
         raise SubmissionRejected(

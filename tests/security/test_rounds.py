@@ -386,3 +386,22 @@ def test_a_failure_quotes_the_controllers_words_as_its_own_and_bounded(tmp_path:
     assert "(the controller's own message, not the system's)" in message.replace("\n", " ")
     quoted = message[message.index("«") : message.index("»")]
     assert len(quoted) <= 201 and "x" * 300 not in message
+
+
+@pytest.mark.slow
+def test_a_failure_does_not_buy_a_new_draw_under_the_same_name(sealed_round: Path):
+    """Issue: a controller that crashed on purpose at its seal, resubmitted under the same name with
+    a one-line change, got a fresh sealed draw in the next round and ranked 1=. A name's first
+    sealed attempt is its result: the resubmission is refused, and the board keeps the failure."""
+    again = sealed_round.parent.parent / "submissions" / "veto_again.py"
+    again.write_text(
+        source("veto", public_rates() + SEALED_CRASHER, "the same, one line changed") + "\n# v2\n"
+    )
+    before = sealed_round.read_bytes()
+    result = _invoke("submit", again, "--leaderboard", sealed_round)
+    assert result.exit_code == 1, result.output
+    assert "`veto` failed at the seal of round 1" in result.stderr
+    assert "a name's first sealed attempt is its result" in result.stderr
+    assert sealed_round.read_bytes() == before
+    failed = [e for e in store.read_board(sealed_round, V1.version).entries if e.name == "veto"]
+    assert [e.status for e in failed] == ["failed"]
