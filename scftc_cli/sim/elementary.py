@@ -11,8 +11,9 @@ stated order (docs/numerics.md).
 ``atan`` is *correctly rounded*: the result is the float64 nearest the exact arctangent. It is
 evaluated in double-double arithmetic (an unevaluated sum ``hi + lo`` carrying about 106 bits):
 ``atan x = pi/2 - atan(1/x)`` above 1, then the half-angle step ``atan t = 2 atan(t / (1 +
-sqrt(1 + t^2)))`` until ``t <= 1/32``, then the odd Taylor series to ``t^23`` (its first omitted
-term is below ``2^-110 t``). The result's error is about ``2^-100`` relative, so it rounds to the
+sqrt(1 + t^2)))`` until ``t <= 1/32``, then the odd Taylor series, with as many terms as bring the
+first omitted one below ``2^-110 t`` (to ``t^23`` at ``t = 1/32``, fewer for a smaller ``t``). The
+result's error is about ``2^-100`` relative, so it rounds to the
 nearest float64 unless the exact value lies within that distance of a midpoint between two floats,
 which no tested argument does (``tests/sim/test_elementary.py`` checks the rounding against mpmath
 at 200 bits). glibc's ``atan`` is not correctly rounded: on x86-64 (glibc 2.36, its FMA variant) it
@@ -160,8 +161,11 @@ def _atan_dd(th, tl):  # pragma: no cover - compiled
         th, tl = _dd_div(th, tl, sh, sl)
         halvings += 1
     uh, ul = _dd_mul(th, tl, th, tl)
-    ph, pl = _INV_ODD_HI[_ATAN_TERMS - 1], _INV_ODD_LO[_ATAN_TERMS - 1]
-    for j in range(_ATAN_TERMS - 2, -1, -1):
+    # as many terms as reach 2^-110 relative: (t^2)^j < 2^-110 with t < 2^e needs j > 55 / -e
+    exponent = -math.frexp(th)[1]  # t < 2^-exponent (t = m 2^e, 1/2 <= m < 1)
+    terms = min(_ATAN_TERMS, 55 // max(exponent, 1) + 2)
+    ph, pl = _INV_ODD_HI[terms - 1], _INV_ODD_LO[terms - 1]
+    for j in range(terms - 2, -1, -1):
         ph, pl = _dd_mul(ph, pl, -uh, -ul)
         ph, pl = _dd_add(_INV_ODD_HI[j], _INV_ODD_LO[j], ph, pl)
     ah, al = _dd_mul(th, tl, ph, pl)

@@ -6,6 +6,8 @@ vectors, twist-swing splits, Euler ``p-q-p`` angles: what a slew planner compose
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from scftc_cli.sim.elementary import arccos, arctan, arctan2, sine, tangent
@@ -61,6 +63,7 @@ def angle_deg_from_norm2(sigma_norm2: np.ndarray) -> np.ndarray:
     return np.degrees(4.0 * arctan(np.sqrt(sigma_norm2)))
 
 
+@functools.cache
 def largest_norm2_within(angle_deg: float) -> float:
     """The largest ``|sigma|^2`` whose ``angle_deg_from_norm2`` is still ``<= angle_deg``.
 
