@@ -30,6 +30,8 @@ import numpy as np
 from numba.core import types
 from numba.core.extending import intrinsic
 
+from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, run_rows
+
 
 @intrinsic
 def fma(typingctx, a, b, c):  # pragma: no cover - compiled
@@ -323,9 +325,9 @@ def tan(x):  # pragma: no cover - compiled
     return th + tl
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _unary_rows(which, x, out):  # pragma: no cover - compiled
-    for i in range(x.size):
+    for i in numba.prange(x.size):
         v = x[i]
         if which == 0:
             out[i] = atan(v)
@@ -348,7 +350,7 @@ def _atan2_rows(y, x, out):  # pragma: no cover - compiled
 def _unary(which: int, x: np.ndarray | float) -> np.ndarray:
     flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
     out = np.empty_like(flat)
-    _unary_rows(which, flat, out)
+    run_rows(_unary_rows, which, flat, out, parallel=flat.size >= PARALLEL_MIN_BATCH)
     return out.reshape(np.shape(x))
 
 
