@@ -8,6 +8,7 @@ spec alone.
 from __future__ import annotations
 
 import functools
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -168,6 +169,27 @@ def warning_line(message: str) -> None:
     from scftc_cli.submission.wire import terminal_safe
 
     stderr.print(f"[bold red]{escape(terminal_safe(message))}[/bold red]", highlight=False, soft_wrap=True)
+
+
+def check_output(path: Path, option: str, folder: bool = False) -> None:
+    """Refuse, before any work, an output path that cannot be written: a file where a folder must
+    be (``FILE/x``), a folder where the file must be, or a place this user cannot create files in
+    (``/proc/...``). ``folder``: ``path`` is a folder to create or fill. Raises ``UsageError`` naming
+    the option and the fix."""
+    path = Path(path)
+    if path.exists() and path.is_dir() != folder:
+        want = "a folder" if folder else "a file"
+        raise UsageError(f"{option} {path}: that is {'a file' if folder else 'a folder'}; give {want}")
+    parent = path if folder else path.parent
+    probe = parent
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UsageError(f"{option} {path}: {probe} is a file, not a folder; choose another path")
+    if not os.access(probe, os.W_OK | os.X_OK) or str(probe.resolve()).startswith(("/proc", "/sys")):
+        raise UsageError(f"{option} {path}: cannot create files under {probe}; choose a writable folder")
 
 
 def note_line(message: str) -> None:

@@ -19,6 +19,7 @@ from scftc_cli.commands.common import (
     SchedulerOption,
     WorkersOption,
     benchmark_of,
+    check_output,
     exits_cleanly,
     note_line,
     progress_bar,
@@ -65,6 +66,8 @@ def eval_command(
     from scftc_cli.spec import get_spec
     from scftc_cli.submission.local import NOTICE
 
+    if log_episodes is not None:
+        check_output(log_episodes, "--log-episodes")
     spec = get_spec(benchmark_of(benchmark, controller_file))
     choice = choose_controller(spec, controller, controller_file, params)
     if controller_file is not None:

@@ -23,6 +23,7 @@ from scftc_cli.commands.common import (
     SchedulerOption,
     WorkersOption,
     caps_notice,
+    check_output,
     exits_cleanly,
     note_line,
     progress_bar,
@@ -109,6 +110,8 @@ def show_command(
     from scftc_cli.board.render import render_board
     from scftc_cli.board.store import default_board_path, read_board, where, write_text_atomically
 
+    if out is not None:
+        check_output(out, "--out")
     fmt = BoardFormat(output_format).value
     if fmt == "html":
         from scftc_cli.board.html import board_html

@@ -14,6 +14,7 @@ from scftc_cli.commands.common import (
     LogEpisodesOption,
     SchedulerOption,
     WorkersOption,
+    check_output,
     exits_cleanly,
     progress_bar,
     stderr,
@@ -63,6 +64,9 @@ def reproduce_command(
 
     spec = get_spec(benchmark)
     out = Path("results") / spec.version if out is None else out
+    check_output(out, "--out", folder=True)
+    if log_episodes is not None:
+        check_output(log_episodes, "--log-episodes")
     start = time.perf_counter()
     with (
         cluster(workers, scheduler) as runner,
