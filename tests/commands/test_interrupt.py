@@ -17,7 +17,7 @@ from scftc_cli.commands.app import INTERRUPTED
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_command_says_so_in_one_line(tmp_path: Path, how: signal.Signals):
     log = tmp_path / "eps.jsonl"
-    command = [sys.executable, "-m", "scftc_cli", "eval", "--benchmark", "scftc-v2", "--controller", "fdir"]
+    command = [sys.executable, "-m", "scftc_cli", "eval", "--benchmark", "scftc-v3", "--controller", "fdir"]
     command += ["--class", "all", "--log-episodes", str(log)]
     proc = subprocess.Popen(
         command,
@@ -27,7 +27,7 @@ def test_an_interrupted_command_says_so_in_one_line(tmp_path: Path, how: signal.
         # as an interactive user's Ctrl-C finds it (a background job starts with SIGINT ignored)
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    time.sleep(4.0)  # past the imports, into the first cells
+    time.sleep(4.0)  # past the imports, into the first cells (a v3 battery flies for minutes)
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(how)
     out, err = proc.communicate(timeout=60)
