@@ -76,8 +76,21 @@ def _resolve(
                 f"{own} after); give it once"
             )
         picked[name] = own if own is not None else before
-    bench = picked["benchmark"] or DEFAULT
+    bench = picked["benchmark"] or board_version(picked["leaderboard"]) or DEFAULT
     return (picked["leaderboard"] or default_board_path(bench, writing=writing)), bench
+
+
+def board_version(path: Path | None) -> str | None:
+    """The benchmark version a board file says it holds (``benchmark_version``), so that
+    ``--leaderboard FILE`` needs no ``--benchmark``; ``None`` for no file or one that says nothing
+    readable (reading the board then reports what is wrong with it)."""
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        said = json.loads(Path(path).read_text()).get("benchmark_version")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return said if isinstance(said, str) else None
 
 
 @leaderboard_app.callback(invoke_without_command=True)
@@ -112,6 +125,8 @@ def show_command(
 
     if out is not None:
         check_output(out, "--out")
+    if leaderboard is not None and not _explicit(ctx, "benchmark"):
+        benchmark = board_version(leaderboard) or benchmark
     fmt = BoardFormat(output_format).value
     if fmt == "html":
         from scftc_cli.board.html import board_html
