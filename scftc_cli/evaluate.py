@@ -136,11 +136,9 @@ def evaluate_cell(
     return _scored(spec, cell, episodes, flown)
 
 
-def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout) -> CellRun:
-    """The cell's record from what its episodes produced."""
-    truth = testbed(spec.version).truth(episodes)
-    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, truth)
-    result = score_cell(
+def _score(spec: BenchmarkSpec, cell: Cell, outcomes: EpisodeOutcomes) -> CellResult:
+    """The cell's scored record from its episodes' outcomes, under the version's gates."""
+    return score_cell(
         outcomes,
         cell.split,
         cell.fault_class,
@@ -150,6 +148,13 @@ def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout)
         spec.dt_s,
         spec.gates.settled_deg,
     )
+
+
+def _scored(spec: BenchmarkSpec, cell: Cell, episodes: Episodes, flown: Rollout) -> CellRun:
+    """The cell's record from what its episodes produced."""
+    truth = testbed(spec.version).truth(episodes)
+    outcomes = episode_outcomes(flown, spec.gates, episodes.fault_index, truth)
+    result = _score(spec, cell, outcomes)
     return CellRun(cell, result, outcomes, episodes, trace=flown.traces.get(0))
 
 
@@ -329,16 +334,7 @@ def _evaluate_on_cluster(
         if inspect is not None:
             inspect.take(cell, [read[c] for c in own])
         merged = EpisodeOutcomes.concat([by_chunk[c] for c in own])
-        result = score_cell(
-            merged,
-            cell.split,
-            cell.fault_class,
-            cell.sensor,
-            spec.confidence,
-            spec.steps,
-            spec.dt_s,
-            spec.gates.settled_deg,
-        )
+        result = _score(spec, cell, merged)
         runs.append(CellRun(cell, result, merged, None, (spec.version, faults, seeds, salt), traced[own[0]]))
     return runs
 

@@ -24,21 +24,7 @@ def friction_shape(
     dt_s: float,
     iterations: int = 8,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``detection.friction_shape`` in numpy: how the plant's RK4 step averaged the friction over a
-    step, from the wheel speeds at its two ends (rad/s, ``(n, m)``) and a Coulomb level ``fC`` (N m,
-    the current estimate); returns ``(shape, mean_speed, exact)``.
-
-    The plant evaluates the friction ``fr(Omega) = -fC clip(Omega / wLC, -1, 1) - cV Omega`` at the
-    four RK4 stages, so the torque the tachometers measure over the step holds the weighted mean
-    ``-fC shape - cV mean_speed`` of the stages, ``shape = sum_i w_i clip(Omega_i / wLC)`` and
-    ``mean_speed = sum_i w_i Omega_i`` with weights (1, 2, 2, 1) / 6. Outside the linear zone the
-    shape is ``sign(Omega)``; inside it the speed relaxes within the step (at 60 fC0 faster than
-    the step), and near its edge the stages straddle it, where the mean of the two ends is off by
-    tens of noise levels. The stages follow from the speed at the start and the torque ``e`` held
-    over the step (motor plus the hub's reaction, taken constant); ``e`` is the root of the RK4
-    map ``Omega_end(e) = end``, monotone and piecewise linear in ``e``, found by Newton's method.
-    ``exact`` is false where it did not converge (the sample is then skipped).
-    """
+    """``detection.friction_shape`` in numpy array operations (its docstring says what it computes)."""
     js, w, cv = wheels.spin_inertia_kgm2, wheels.omega_linear_rad_s, wheels.viscous_nms
     weights = (1.0, 2.0, 2.0, 1.0)
     steps = (0.5 * dt_s, 0.5 * dt_s, dt_s)
