@@ -274,6 +274,20 @@ _TRIG_LIMIT = 2.0**20
 """Largest ``|x|`` ``sin``, ``cos`` and ``tan`` take (beyond it the reduction loses bits): NaN there."""
 
 
+@numba.njit(inline="always")
+def _sine_in_quadrant(quadrant, sh, sl, ch, cl):  # pragma: no cover - compiled
+    """``sin(q pi/2 + r)`` rounded once, from ``sin r`` and ``cos r`` as double-doubles: ``sin r``,
+    ``cos r``, ``-sin r``, ``-cos r`` for ``q`` = 0, 1, 2, 3 (mod 4)."""
+    q = quadrant % 4
+    if q == 0:
+        return sh + sl
+    if q == 1:
+        return ch + cl
+    if q == 2:
+        return -(sh + sl)
+    return -(ch + cl)
+
+
 @numba.njit
 def sin(x):  # pragma: no cover - compiled
     """``sin x`` for ``|x| <= 2^20``, rounded once from double-double (module docstring)."""
@@ -283,29 +297,17 @@ def sin(x):  # pragma: no cover - compiled
         return x
     quadrant, rh, rl = _reduce(x)
     sh, sl, ch, cl = _sin_cos_dd(rh, rl)
-    if quadrant == 0:
-        return sh + sl
-    if quadrant == 1:
-        return ch + cl
-    if quadrant == 2:
-        return -(sh + sl)
-    return -(ch + cl)
+    return _sine_in_quadrant(quadrant, sh, sl, ch, cl)
 
 
 @numba.njit
 def cos(x):  # pragma: no cover - compiled
-    """``cos x`` for ``|x| <= 2^20``, rounded once from double-double."""
+    """``cos x = sin(x + pi/2)`` for ``|x| <= 2^20``: one quadrant on, rounded once."""
     if not abs(x) <= _TRIG_LIMIT:
         return np.nan
     quadrant, rh, rl = _reduce(x)
     sh, sl, ch, cl = _sin_cos_dd(rh, rl)
-    if quadrant == 0:
-        return ch + cl
-    if quadrant == 1:
-        return -(sh + sl)
-    if quadrant == 2:
-        return -(ch + cl)
-    return sh + sl
+    return _sine_in_quadrant(quadrant + 1, sh, sl, ch, cl)
 
 
 @numba.njit
