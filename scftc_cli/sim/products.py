@@ -16,6 +16,10 @@ order is stated here:
 
 These are the orders the boards were sealed with: ``tests/golden`` holds their bits.
 
+A sum over an axis is written out too: ``sum_rows`` left to right, ``pairwise_sum`` in the order
+numpy's ``sum`` over a contiguous last axis takes (stated in its docstring), for code whose sealed
+bits came from that call.
+
 Element-wise numpy arithmetic (``+ - * /``, ``sqrt``) is correctly rounded in any of numpy's loops
 and needs nothing of this: a short dot product written out (``a0 * b0 + a1 * b1``) is already an
 order of its own.
@@ -114,4 +118,45 @@ def sum_rows(x: np.ndarray) -> np.ndarray:
     total = x[:, 0]
     for i in range(1, x.shape[1]):
         total = total + x[:, i]
+    return total
+
+
+def pairwise_sum(x: np.ndarray) -> np.ndarray:
+    """The sum over the last axis of ``x`` ``(..., k)``: ``(...)``, in numpy's pairwise order (its
+    ``sum`` over a contiguous last axis, numpy 2.x), written here, for any layout of ``x``. Over
+    ``k`` terms ``x0 .. x(k-1)``:
+
+    - ``k < 8``: left to right, ``((x0 + x1) + x2) + ...``;
+    - ``8 <= k <= 128``: eight accumulators ``r_j = ((x_j + x_(j+8)) + x_(j+16)) + ...`` over the
+      whole blocks of eight, combined as ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))``, then
+      the last ``k mod 8`` terms added left to right;
+    - ``k > 128``: the sum of the first ``h`` terms plus the sum of the rest, each in this order,
+      ``h`` being ``k // 2`` rounded down to a multiple of 8;
+
+    the total finally added to +0.0 (numpy's identity, so a sum of -0.0 terms is +0.0)."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[-1] == 0:
+        return np.zeros(x.shape[:-1])
+    return 0.0 + _pairwise(x)
+
+
+def _pairwise(x: np.ndarray) -> np.ndarray:
+    """``pairwise_sum`` before the final +0.0, over ``k >= 1`` terms."""
+    k = x.shape[-1]
+    if k > 128:
+        half = k // 2 - (k // 2) % 8
+        return _pairwise(x[..., :half]) + _pairwise(x[..., half:])
+    if k < 8:
+        total = x[..., 0]
+        for i in range(1, k):
+            total = total + x[..., i]
+        return total
+    r = x[..., :8]
+    for start in range(8, k - k % 8, 8):
+        r = r + x[..., start : start + 8]
+    total = ((r[..., 0] + r[..., 1]) + (r[..., 2] + r[..., 3])) + (
+        (r[..., 4] + r[..., 5]) + (r[..., 6] + r[..., 7])
+    )
+    for i in range(k - k % 8, k):
+        total = total + x[..., i]
     return total

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from scftc_cli.sim.elementary import fma
-from scftc_cli.sim.products import chain3, chain4, matmul, split_dot3, split_matvec3, sum_rows
+from scftc_cli.sim.products import chain3, chain4, matmul, pairwise_sum, split_dot3, split_matvec3, sum_rows
 
 
 def _round(value: Fraction) -> float:
@@ -118,3 +118,51 @@ def test_split_matvec3_and_sum_rows_are_their_stated_orders():
     np.testing.assert_array_equal(sum_rows(x), (x[:, 0] + x[:, 1]) + x[:, 2])
     with pytest.raises(ValueError, match="three-term"):
         split_matvec3(m[..., :2], v[:, :2])
+
+
+def _add(a: float, b: float) -> float:
+    return _round(Fraction(a) + Fraction(b))
+
+
+def _pairwise(terms: list[float]) -> float:
+    """``pairwise_sum``'s stated order, each addition one rounding of the exact sum."""
+    k = len(terms)
+    if k > 128:
+        half = k // 2 - (k // 2) % 8
+        return _add(_pairwise(terms[:half]), _pairwise(terms[half:]))
+    if k < 8:
+        total = terms[0]
+        for term in terms[1:]:
+            total = _add(total, term)
+        return total
+    r = terms[:8]
+    for start in range(8, k - k % 8, 8):
+        r = [_add(r[j], terms[start + j]) for j in range(8)]
+    total = _add(_add(_add(r[0], r[1]), _add(r[2], r[3])), _add(_add(r[4], r[5]), _add(r[6], r[7])))
+    for term in terms[k - k % 8 :]:
+        total = _add(total, term)
+    return total
+
+
+@pytest.mark.parametrize("k", [1, 3, 4, 7, 8, 9, 16, 20, 127, 128, 129, 300])
+def test_pairwise_sum_is_its_stated_order(k):
+    rng = np.random.default_rng(k)
+    x = _rows(rng, 6, 2, k)
+    want = np.array([[_pairwise(list(x[i, j])) for j in range(2)] for i in range(6)])
+    np.testing.assert_array_equal(pairwise_sum(x), want)
+    # the order is the layout's no matter: a transposed (strided) operand sums the same
+    np.testing.assert_array_equal(pairwise_sum(np.ascontiguousarray(x.T).T), want)
+
+
+@pytest.mark.parametrize("k", [1, 3, 4, 8, 10, 20, 129, 257])
+def test_pairwise_sum_is_numpys_sum_over_a_contiguous_last_axis(k):
+    """The order the sealed v1 bits came from (numpy pinned by constraints.txt)."""
+    rng = np.random.default_rng(100 + k)
+    x = _rows(rng, 40, 3, k)
+    np.testing.assert_array_equal(pairwise_sum(x), x.sum(-1))
+
+
+def test_pairwise_sum_of_negative_zeros_and_of_nothing_is_positive_zero():
+    assert not np.signbit(pairwise_sum(np.full((2, 5), -0.0))).any()
+    assert not np.signbit(pairwise_sum(np.full((2, 9), -0.0))).any()
+    np.testing.assert_array_equal(pairwise_sum(np.zeros((2, 0))), np.zeros(2))

@@ -37,6 +37,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
+from scftc_cli.sim.products import pairwise_sum
 from scftc_cli.versions.v1.controllers.analytic import KD_S, KP_S2, THETA_FLOOR, nominal_command, theta_eff
 from scftc_cli.versions.v1.controllers.observer import TorqueMeter, square_dither
 from scftc_cli.versions.v1.spec import V1
@@ -68,6 +69,16 @@ def eig2(m11: np.ndarray, m12: np.ndarray, m22: np.ndarray) -> tuple[np.ndarray,
     return mean - rad, mean + rad
 
 
+def window_mean(window: np.ndarray) -> np.ndarray:
+    """The mean over axis 0 of a ring buffer ``(window, n, 3)``: ``(n, 3)``, in the order of numpy's
+    ``mean(0)`` (which the sealed bits came from), written here: the slots added in slot order onto
+    +0.0, ``((+0.0 + x0) + x1) + ...``, then divided by their count."""
+    total = 0.0 + window[0]
+    for row in window[1:]:
+        total = total + row
+    return total / len(window)
+
+
 class HistoryStack:
     """Per-axis stack of ``stack_size`` windows ``(y1 = mean a, U)`` (``y2 = 1`` always), batch
     ``(n, 3, stack_size)``, curated to maximize ``lambda_min`` of its information matrix."""
@@ -80,9 +91,10 @@ class HistoryStack:
         self.replace_margin = replace_margin
 
     def info(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``M = sum_j Y_j'Y_j`` entries ``(n, 3)`` each."""
+        """``M = sum_j Y_j'Y_j`` entries ``(n, 3)`` each, the sums over the stack in
+        ``products.pairwise_sum``'s order (numpy's ``sum(-1)``, which the sealed bits came from)."""
         w = self.used.astype(float)
-        return (w * self.y1**2).sum(-1), (w * self.y1).sum(-1), w.sum(-1)
+        return pairwise_sum(w * self.y1**2), pairwise_sum(w * self.y1), pairwise_sum(w)
 
     def offer(self, y1: np.ndarray, u: np.ndarray) -> None:
         """Offer a new window ``(n, 3)``: fill free slots first, then replace where it pays."""
@@ -106,12 +118,13 @@ class HistoryStack:
         self.u = np.where(onehot, u[..., None], self.u)
 
     def cl_direction(self, theta: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``sum_j Y_j' (U_j - Y_j phi) / lambda_max(M)`` split into its theta and beta parts."""
+        """``sum_j Y_j' (U_j - Y_j phi) / lambda_max(M)`` split into its theta and beta parts (the sums
+        over the stack in ``products.pairwise_sum``'s order)."""
         w = self.used.astype(float)
         r = w * (self.u - self.y1 * theta[..., None] - beta[..., None])
         _, lam_max = eig2(*self.info())
         norm = np.maximum(lam_max, 1e-9)
-        return (self.y1 * r).sum(-1) / norm, r.sum(-1) / norm
+        return pairwise_sum(self.y1 * r) / norm, pairwise_sum(r) / norm
 
 
 class ICLAdaptive(Tuned, Controller):
@@ -139,7 +152,7 @@ class ICLAdaptive(Tuned, Controller):
         self.window_a[slot], self.window_dw[slot] = a, dw
         self.measured += 1
         if self.measured >= p.window:
-            self.stack.offer(self.window_a.mean(0), self.window_dw.mean(0))
+            self.stack.offer(window_mean(self.window_a), window_mean(self.window_dw))
         d_theta, d_beta = self.stack.cl_direction(self.theta_hat, self.beta_hat)
         eps = (dw - self.theta_hat * a - self.beta_hat) / (1.0 + a * a)
         theta = self.theta_hat + p.gamma_cl * d_theta + p.gamma_inst * a * eps

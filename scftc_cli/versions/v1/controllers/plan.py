@@ -26,6 +26,7 @@ time comes from the identified authorities and the nominal inertia — nothing i
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,9 +124,10 @@ def plan_slews(
         for branch in range(2):
             angles = branches[:, branch]
             pos, neg = a_pos[rows[:, None], axes], a_neg[rows[:, None], axes]
-            t = np.sum(
-                slew_time(angles, pos, neg, eta) + np.where(np.abs(angles) > 1e-6, overhead_s, 0.0), axis=1
-            )
+            per_slew = slew_time(angles, pos, neg, eta) + np.where(np.abs(angles) > 1e-6, overhead_s, 0.0)
+            # the three slews' times left to right, then +0.0: the order of numpy's ``sum(axis=1)``,
+            # which the sealed bits came from
+            t = 0.0 + ((per_slew[:, 0] + per_slew[:, 1]) + per_slew[:, 2])
             better = t < best_t
             best_t = np.where(better, t, best_t)
             best_axes = np.where(better[:, None], axes, best_axes)
@@ -443,7 +445,7 @@ class RLSPlan(Tuned, Controller):
             self.mode[step] = np.where(self.slew[step] >= 3, HOLD, SLEW)
             go = step[self.slew[step] < 3]
             self.psi_prev[go] = -self.angles[go, self.slew[go]]
-        drift = np.abs(delta[rows, held]) > np.radians(p.replan_deg)
+        drift = np.abs(delta[rows, held]) > p.replan_deg * (math.pi / 180.0)  # as np.radians
         replan = holding & drift & ~live_held & (self.replans[idx] < p.max_replans)
         if np.any(replan):
             self.replans[idx[replan]] += 1
