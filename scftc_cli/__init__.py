@@ -3,10 +3,10 @@
 Importing the package imports nothing of it. Where gymnasium is (or later gets) imported, the
 package's environments are registered with it (``envs.register``): gymnasium 1.x loads no plugin
 entry points, so a post-import hook does it, naming the registration by its ``"module:attr"``
-(``ENVIRONMENTS``) so that the package root depends on no layer. Two settings of the numerical
-libraries are made here too, before those libraries load: the pinned kernels of numpy and OpenBLAS
-(``PINNED_NUMERICS``) and, through a pre-import hook for numba, the vector width of its compiled
-loops (``WIDE_VECTORS``).
+(``ENVIRONMENTS``) so that the package root depends on no layer. One setting of numba is made here
+too, through a pre-import hook, before numba loads: the vector width of its compiled loops on
+AVX-512 CPUs (``WIDE_VECTORS``), a matter of speed only. Nothing here steers which kernels numpy or
+OpenBLAS load: no scored number goes through them (docs/numerics.md).
 """
 
 from __future__ import annotations
@@ -14,25 +14,10 @@ from __future__ import annotations
 import importlib.abc
 import importlib.machinery
 import os
-import platform
 import sys
 from types import ModuleType
 
 __version__ = "0.2.0"
-
-PINNED_NUMERICS = (
-    {"OPENBLAS_CORETYPE": "Haswell", "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"}
-    if platform.machine() in ("x86_64", "AMD64")
-    else {}
-)
-"""The same floating-point kernels on every x86-64 machine: OpenBLAS's Haswell kernels (AVX2, FMA)
-and numpy's loops without AVX-512. OpenBLAS and numpy otherwise pick kernels by CPU, and the
-closed loop amplifies their last-bit differences: measured, the OpenBLAS kernel alone moves
-``fdir``'s held-out ``loss`` cell of the reaction-wheel track from 491 to 492 settled episodes.
-Both libraries read these variables when they load, so they are set here, before numpy is imported
-by anything of ours (the test suite's conftest sets them too; a user's value is kept)."""
-for _name, _value in PINNED_NUMERICS.items():
-    os.environ.setdefault(_name, _value)
 
 WIDE_VECTORS = "-prefer-256-bit"
 """The LLVM feature that holds numba's compiled loops to 256-bit vectors on AVX-512 CPUs (LLVM's

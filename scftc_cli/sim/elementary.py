@@ -19,6 +19,10 @@ which no tested argument does (``tests/sim/test_elementary.py`` checks the round
 at 200 bits). glibc's ``atan`` is not correctly rounded: on x86-64 (glibc 2.36, its FMA variant) it
 is one ulp off on about 2 arguments in 1 000 of ``[0, 1]``, so adopting this function moved the last
 bit of a few reported errors (CHANGELOG, numerics epoch of the scoring's angle).
+
+``sin``, ``cos``, ``tan``, ``acos``, ``atan2``, and ``exp`` and ``log1p`` (the sensors' ziggurat,
+``sim/pcg64``) are built the same way: a reduction and a series in double-double, rounded once
+(each one's docstring states its order), checked against mpmath the same way.
 """
 
 from __future__ import annotations
@@ -118,16 +122,20 @@ def _constants():
     from math import factorial
 
     pi = Fraction("3.14159265358979323846264338327950288419716939937510582097494459230781640628620899")
-    half_pi = pi / 2
-    p1 = float(half_pi)
-    p2 = float(half_pi - Fraction(p1))
-    p3 = float(half_pi - Fraction(p1) - Fraction(p2))
-    inv_odd = [_dd_constant(Fraction(1, 2 * j + 1)) for j in range(_ATAN_TERMS)]
+    ln2 = Fraction("0.693147180559945309417232121458176568075500134360255254120680009493393621969694715")
+
+    def three_parts(value):
+        p1 = float(value)
+        p2 = float(value - Fraction(p1))
+        return p1, p2, float(value - Fraction(p1) - Fraction(p2))
+
+    inv_odd = [_dd_constant(Fraction(1, 2 * j + 1)) for j in range(max(_ATAN_TERMS, _LOG_TERMS))]
     inv_fact = [_dd_constant(Fraction(1, factorial(j))) for j in range(2 * _TRIG_TERMS + 2)]
     return (
-        _dd_constant(half_pi),
+        _dd_constant(pi / 2),
         _dd_constant(pi),
-        (p1, p2, p3),
+        three_parts(pi / 2),
+        three_parts(ln2),
         np.array([c[0] for c in inv_odd]),
         np.array([c[1] for c in inv_odd]),
         np.array([c[0] for c in inv_fact]),
@@ -137,10 +145,13 @@ def _constants():
 
 _ATAN_TERMS = 12  # (-1)^j t^(2j+1) / (2j+1), j < 12: the next is below 2^-110 t for t <= 1/32
 _TRIG_TERMS = 15  # sin r = sum_j (-1)^j r^(2j+1) / (2j+1)!, j < 15: the next below 2^-110 for |r| <= pi/4
+_EXP_TERMS = 24  # e^r - 1 = sum_j r^j / j!, 0 < j <= 24: the next below 2^-120 for |r| <= ln2 / 2
+_LOG_TERMS = 21  # atanh f = sum_j f^(2j+1) / (2j+1), j < 21: the next below 2^-112 f for |f| <= 0.172
 (
     (_HALF_PI_HI, _HALF_PI_LO),
     (_PI_HI, _PI_LO),
     (_PIO2_1, _PIO2_2, _PIO2_3),
+    (_LN2_1, _LN2_2, _LN2_3),
     _INV_ODD_HI,
     _INV_ODD_LO,
     _INV_FACT_HI,
@@ -325,6 +336,93 @@ def tan(x):  # pragma: no cover - compiled
     else:
         th, tl = _dd_div(-ch, -cl, sh, sl)
     return th + tl
+
+
+@numba.njit(inline="always")
+def _add_k_ln2(k, ah, al):  # pragma: no cover - compiled
+    """``a + k ln2`` as a double-double, for an integer-valued ``|k| <= 1100``: ``ln2`` in three
+    parts, the first two products exact (``fma``), each added to the running sum in turn."""
+    for part in (_LN2_1, _LN2_2):
+        p = k * part
+        e = fma(k, part, -p)  # type: ignore[call-arg,var-annotated]
+        ah, al = _dd_add(ah, al, p, e)
+    return _dd_add(ah, al, k * _LN2_3, 0.0)
+
+
+_EXP_MAX = 709.8  # exp x overflows above ln(2^1024) = 709.78...
+_EXP_MIN = -745.2  # and rounds to 0 below ln(2^-1075) = -745.13...
+
+
+@numba.njit(inline="always")
+def _one_plus(ph, pl):  # pragma: no cover - compiled
+    """``1 + p`` for a double-double ``p``, rounded once: the sum exactly as ``w + g + f``
+    (``w = fl(1 + ph + pl)``, three ``_two_sum``), and where ``w + g`` is a tie (``1 + x`` for
+    ``x = 2^-53``, say), ``f`` breaks it."""
+    s, e = _two_sum(1.0, ph)
+    t, f = _two_sum(e, pl)
+    w, g = _two_sum(s, t)
+    if f != 0.0 and (w + 2.0 * g) - w == 2.0 * g and (f > 0.0) == (g > 0.0):
+        return w + 2.0 * g
+    return w
+
+
+@numba.njit
+def exp(x):  # pragma: no cover - compiled
+    """``e^x``, correctly rounded as ``atan`` is where the result is normal (``x >= -708.39``):
+    ``x = k ln2 + r`` with ``k`` the integer nearest ``x / ln2`` and ``|r| <= ln2 / 2`` in
+    double-double (``_add_k_ln2``), ``e^r - 1 = r (1 + r/2! + ... + r^23 / 24!)`` (Horner, in
+    double-double: its error is relative to ``e^r - 1``, so the ties of ``1 + r`` near ``r = 0``
+    are decided), ``1 + (e^r - 1)`` rounded once (``_one_plus``) and scaled by ``2^k`` (``ldexp``:
+    exact). Where the result is subnormal that scaling rounds a second time, so it can be one unit
+    of the last subnormal place off. ``exp(+inf) = inf``, ``exp(-inf) = 0``, NaN for NaN."""
+    if x != x:
+        return x
+    if x > _EXP_MAX:
+        return np.inf
+    if x < _EXP_MIN:
+        return 0.0
+    k = np.floor(x * (1.0 / _LN2_1) + 0.5)
+    rh, rl = _add_k_ln2(-k, x, 0.0)
+    ph, pl = _INV_FACT_HI[_EXP_TERMS], _INV_FACT_LO[_EXP_TERMS]
+    for j in range(_EXP_TERMS - 1, 0, -1):
+        ph, pl = _dd_mul(ph, pl, rh, rl)
+        ph, pl = _dd_add(_INV_FACT_HI[j], _INV_FACT_LO[j], ph, pl)
+    ph, pl = _dd_mul(ph, pl, rh, rl)
+    return math.ldexp(_one_plus(ph, pl), int(k))
+
+
+@numba.njit
+def log1p(x):  # pragma: no cover - compiled
+    """``ln(1 + x)``, correctly rounded as ``atan`` is: ``1 + x`` exactly as a double-double
+    ``s = 2^k m`` with ``sqrt(1/2) <= m < sqrt(2)``, then ``ln s = k ln2 + 2 atanh f`` with
+    ``f = (m - 1) / (m + 1)`` (``|f| <= 0.172``; the odd series of ``atanh``, as many terms as
+    reach ``2^-110 f``, Horner in ``f^2``), all in double-double, rounded once; ``x`` itself
+    where ``|x| < 2^-54``. ``-inf`` at ``-1``, NaN below it and for NaN, ``+inf`` at ``+inf``."""
+    if not x > -1.0:
+        return -np.inf if x == -1.0 else np.nan
+    if abs(x) < 2.0**-54 or x == np.inf:
+        return x  # ln(1 + x) = x - x^2 / 2 + ... rounds to x (the sign of a zero kept)
+    sh, sl = _two_sum(1.0, x)
+    mantissa, k = math.frexp(sh)  # sh = mantissa 2^k, 1/2 <= mantissa < 1
+    if mantissa < 0.7071067811865476:
+        k -= 1
+    mh, ml = math.ldexp(sh, -k), math.ldexp(sl, -k)  # exact
+    if k == 0:
+        nh, nl = x, 0.0  # m - 1, exactly
+    else:
+        nh, nl = _dd_add(mh, ml, -1.0, 0.0)
+    dh, dl = _dd_add(mh, ml, 1.0, 0.0)
+    fh, fl = _dd_div(nh, nl, dh, dl)
+    uh, ul = _dd_mul(fh, fl, fh, fl)
+    exponent = -math.frexp(fh)[1]  # as in _atan_dd: |f| < 2^-exponent
+    terms = min(_LOG_TERMS, 55 // max(exponent, 1) + 2)
+    ph, pl = _INV_ODD_HI[terms - 1], _INV_ODD_LO[terms - 1]
+    for j in range(terms - 2, -1, -1):
+        ph, pl = _dd_mul(ph, pl, uh, ul)
+        ph, pl = _dd_add(_INV_ODD_HI[j], _INV_ODD_LO[j], ph, pl)
+    ah, al = _dd_mul(2.0 * fh, 2.0 * fl, ph, pl)
+    ah, al = _add_k_ln2(float(k), ah, al)
+    return ah + al
 
 
 @numba.njit(cache=True, parallel=True)

@@ -11,6 +11,7 @@ import functools
 import numpy as np
 
 from scftc_cli.sim.elementary import arccos, arctan, arctan2, sine, tangent
+from scftc_cli.sim.products import matmul
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -92,13 +93,14 @@ def from_axis_angle(axis: np.ndarray, angle_rad: np.ndarray | float) -> np.ndarr
 
 
 def to_dcm(sigma: np.ndarray) -> np.ndarray:
-    """Direction cosine matrices ``(n, 3, 3)`` of ``sigma`` ``(n, 3)`` (used by tests)."""
+    """Direction cosine matrices ``(n, 3, 3)`` of ``sigma`` ``(n, 3)``, ``tilde^2`` as
+    ``products.matmul``'s multiply-add chains."""
     s2 = norm2(sigma)[:, None, None]
     tilde = np.zeros(sigma.shape[:1] + (3, 3))
     tilde[:, 0, 1], tilde[:, 0, 2] = -sigma[:, 2], sigma[:, 1]
     tilde[:, 1, 0], tilde[:, 1, 2] = sigma[:, 2], -sigma[:, 0]
     tilde[:, 2, 0], tilde[:, 2, 1] = -sigma[:, 1], sigma[:, 0]
-    return np.eye(3) + (8.0 * tilde @ tilde - 4.0 * (1.0 - s2) * tilde) / (1.0 + s2) ** 2
+    return np.eye(3) + (8.0 * matmul(tilde, tilde) - 4.0 * (1.0 - s2) * tilde) / (1.0 + s2) ** 2
 
 
 # --- rotations for attitude planning (batch) --------------------------------------------------

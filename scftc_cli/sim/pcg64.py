@@ -3,11 +3,18 @@
 ``Generator(PCG64(seed)).standard_normal()`` is numpy's ziggurat (``random_standard_normal`` in
 numpy's ``distributions.c``) on PCG64's 64-bit outputs (``pcg64.h``: the 128-bit LCG step
 ``state = state * M + inc``, then the XSL-RR output of the new state). ``standard_normal`` below
-is the same algorithm, the same tables and the same floating-point operations, so a kernel that
-draws a stream's normals one at a time gets exactly the numbers numpy would have drawn from it
-(``tests/sim/test_pcg64.py`` checks that on millions of draws, the ziggurat's rare branches
-included). What it buys: one Python call per batch instead of one per episode, no block of
-normals in memory, and the draws of different episodes can run in parallel.
+is the same algorithm, the same tables and the same floating-point operations, except that the
+wedges' ``exp`` and the tail's ``log1p`` are the project's own (``sim/elementary``: correctly
+rounded, the same bits on every machine) where numpy calls libm's. A kernel that draws a stream's
+normals one at a time gets the numbers numpy would have drawn from it, and ends at the same place
+in the stream, but for the last bit of a few draws beyond ``r = 3.654`` (the tail, one draw in
+4 000): glibc 2.36's ``log1p`` is one ulp off on about 7 in 100 of the tail's arguments, which
+moves about one tail draw in 200 by one ulp (36 of 32 million draws; glibc's ``exp`` is off on
+about 7 wedge arguments in 10 000, but no wedge test flipped). ``tests/sim/test_pcg64.py`` checks
+the body and the wedges against numpy bit for bit on millions of draws, and the tail against
+numpy's tail with mpmath's ``log1p``. What it buys: one Python call per batch instead
+of one per episode, no block of normals in memory, and the draws of different episodes can run in
+parallel.
 
 A stream's state is four ``uint64`` words, ``(state >> 64, state & M64, inc >> 64, inc & M64)``;
 a batch of streams is an ``(n, 4)`` ``uint64`` array (``states_of``), advanced in place.
@@ -36,6 +43,8 @@ from numba.np.random._constants import (
     ziggurat_nor_inv_r,
     ziggurat_nor_r,
 )
+
+from scftc_cli.sim.elementary import exp, log1p
 
 _MASK64 = (1 << 64) - 1
 _MULT_HI = np.uint64(2549297995355413924)  # PCG_DEFAULT_MULTIPLIER_128, high and low words
@@ -99,6 +108,16 @@ def next_double(state: np.ndarray, e: int) -> float:  # pragma: no cover - compi
 
 
 @numba.njit(inline="always")
+def _tail(state: np.ndarray, e: int, negative: bool) -> float:  # pragma: no cover - compiled
+    """A normal beyond ``r``, numpy's tail (Marsaglia's): ``1 - U`` so that the log never sees 0."""
+    while True:
+        xx = -_INV_R * log1p(-next_double(state, e))
+        yy = -log1p(-next_double(state, e))
+        if yy + yy > xx * xx:
+            return -(_R + xx) if negative else _R + xx
+
+
+@numba.njit(inline="always")
 def standard_normal(state: np.ndarray, e: int) -> float:  # pragma: no cover - compiled
     """The next standard normal of stream ``e``: numpy's ``random_standard_normal``."""
     while True:
@@ -112,12 +131,8 @@ def standard_normal(state: np.ndarray, e: int) -> float:  # pragma: no cover - c
         if rabs < _KI[idx]:
             return x  # 99.3 % of the draws
         if idx == 0:
-            while True:  # the tail, with 1 - U so that the log never sees 0
-                xx = -_INV_R * np.log1p(-next_double(state, e))
-                yy = -np.log1p(-next_double(state, e))
-                if yy + yy > xx * xx:
-                    return -(_R + xx) if (rabs >> _U8) & _U1 else _R + xx
-        elif (_FI[idx - _U1] - _FI[idx]) * next_double(state, e) + _FI[idx] < np.exp(-0.5 * x * x):
+            return _tail(state, e, (rabs >> _U8) & _U1 != _U0)
+        if (_FI[idx - _U1] - _FI[idx]) * next_double(state, e) + _FI[idx] < exp(-0.5 * x * x):
             return x
 
 

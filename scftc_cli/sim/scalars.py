@@ -1,10 +1,9 @@
-"""Small pieces the compiled kernels share, each written to give numpy's bits for one row: the
-symmetric clip, the adjugate inverse of a 3x3 matrix, and ``np.linalg.inv`` of a 3x3 matrix as
-LAPACK computes it.
+"""Small pieces the compiled kernels share, each in a stated order: the symmetric clip, the
+adjugate inverse of a 3x3 matrix, and the LU inverse of a 3x3 matrix with partial pivoting.
 
 Element-wise IEEE arithmetic compiles to the same roundings as numpy's (numba contracts no
-multiply-add unless asked), so these only fix the order of their terms to the one their numpy
-forms use, and call ``fma`` where the library's compiled code fuses a multiply-add.
+multiply-add unless asked), so the order written is the order computed; ``fma`` appears only where
+written (docs/numerics.md).
 """
 
 from __future__ import annotations
@@ -16,8 +15,8 @@ from scftc_cli.sim.elementary import fma
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
 
 SMALLEST_PIVOT = float(np.finfo(np.float64).tiny)
-"""OpenBLAS's ``dgetf2`` divides by a pivot only from this magnitude on (``DBL_MIN``); below it, it
-neither swaps nor scales, and ``lapack_inverse3`` leaves such a matrix to LAPACK itself."""
+"""From this magnitude on, ``lu_inverse3`` scales a column by the pivot's reciprocal; below it (a
+subnormal pivot, whose reciprocal overflows), it divides each entry by the pivot instead."""
 
 
 @numba.njit(inline="always")
@@ -54,60 +53,50 @@ def _swap(a, i, j, column):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def lapack_inverse3(m, a, out):  # pragma: no cover - compiled
-    """``np.linalg.inv`` of the 3x3 matrix ``m`` into ``out``, bit for bit, with ``a`` (3, 3) as
-    scratch; ``False`` (``out`` then undefined) where LAPACK's own result must be taken instead: an
-    entry, a pivot or a result not finite, or a pivot below ``SMALLEST_PIVOT`` (a singular matrix
-    among them, for which ``np.linalg.inv`` raises).
+def lu_inverse3(m, a, out):  # pragma: no cover - compiled
+    """The inverse of the 3x3 matrix ``m`` into ``out`` by LU factorisation with partial pivoting,
+    ``a`` (3, 3) as scratch; ``False`` where a pivot is zero (the matrix is singular; ``out`` then
+    undefined). Non-finite entries are carried through as IEEE arithmetic carries them.
 
-    numpy's ``inv`` is ``dgesv(A, I)``; under the pinned kernels (``scftc_cli.PINNED_NUMERICS``)
-    that is OpenBLAS's left-looking ``dgetf2`` (each column: the earlier swaps, the update by the
-    finished columns, the pivot of largest magnitude (the first of equals), the multipliers times
-    the pivot's reciprocal), then ``dgetrs``: the row swaps on ``I``, the unit lower solve (rows 0-1
-    as one block, row 2 updated by the ``dgemm`` kernel) and the upper solve (row 2, then rows 0-1
-    updated by ``dgemm`` and solved with the reciprocal diagonal). Only the assembly ``dgemm``
-    kernel fuses its multiply-adds (a chain from +0.0, subtracted once); the C code around it
-    (``dgemv``'s and ``ddot``'s short sums, the solves inside a block) rounds each product. Measured
-    equal to ``np.linalg.inv`` on millions of matrices of magnitudes across decades
-    (``tests/sim/test_scalars.py``); fusing any other multiply-add, or unfusing the kernel's, breaks
-    the equality on a third or more of them."""
+    The order (the one LAPACK's ``dgesv(A, I)`` takes under OpenBLAS's Haswell kernels, which the
+    boards were first sealed with, written here as the project's own): column by column, the
+    earlier swaps, the update by the finished columns, the pivot of largest magnitude (the first of
+    equals), the multipliers as products with the pivot's reciprocal (quotients for a pivot below
+    ``SMALLEST_PIVOT``); then for each column of ``P I`` the unit lower solve (row 2 as a
+    multiply-add chain from +0.0) and the upper solve (row 2, then rows 0-1 with the reciprocal
+    diagonal). Every other product is rounded before it is added; the one ``fma`` chain is written.
+    ``tests/sim/test_scalars.py`` checks it against exact rational arithmetic."""
     for r in range(3):
         for c in range(3):
-            v = m[r, c]
-            if not np.isfinite(v):
-                return False
-            a[r, c] = v
+            a[r, c] = m[r, c]
     # column 0: pivot, swap (column 0 only; the later columns take the swaps when they are reached)
     p = 0
     if abs(a[1, 0]) > abs(a[p, 0]):
         p = 1
     if abs(a[2, 0]) > abs(a[p, 0]):
         p = 2
-    if not abs(a[p, 0]) >= SMALLEST_PIVOT:
+    if a[p, 0] == 0.0:
         return False
-    reciprocal = 1.0 / a[p, 0]
     _swap(a, 0, p, 0)
-    a[1, 0] = a[1, 0] * reciprocal
-    a[2, 0] = a[2, 0] * reciprocal
-    # column 1: the swap of column 0, the dgemv update, pivot over rows 1-2, swap (columns 0-1)
+    _scale(a, 1, 0, a[0, 0])
+    # column 1: the swap of column 0, the update, pivot over rows 1-2, swap (columns 0-1)
     _swap(a, 0, p, 1)
     a[1, 1] = a[1, 1] - (0.0 + a[1, 0] * a[0, 1])
     a[2, 1] = a[2, 1] - (0.0 + a[2, 0] * a[0, 1])
     q = 2 if abs(a[2, 1]) > abs(a[1, 1]) else 1
-    if not abs(a[q, 1]) >= SMALLEST_PIVOT:
+    if a[q, 1] == 0.0:
         return False
-    reciprocal = 1.0 / a[q, 1]
     _swap(a, 1, q, 0)
     _swap(a, 1, q, 1)
-    a[2, 1] = a[2, 1] * reciprocal
-    # column 2: both swaps, the ddot update of row 1, dgemv's of row 2
+    _scale(a, 2, 1, a[1, 1])
+    # column 2: both swaps, the update of row 1, then of row 2
     _swap(a, 0, p, 2)
     _swap(a, 1, q, 2)
     a[1, 2] = a[1, 2] - (0.0 + a[1, 0] * a[0, 2])
     a[2, 2] = a[2, 2] - ((0.0 + a[2, 0] * a[0, 2]) + a[2, 1] * a[1, 2])
-    if not abs(a[2, 2]) >= SMALLEST_PIVOT:
+    if a[2, 2] == 0.0:
         return False
-    d0, d1, d2 = 1.0 / a[0, 0], 1.0 / a[1, 1], 1.0 / a[2, 2]  # dtrsm's packed reciprocal diagonal
+    d0, d1, d2 = 1.0 / a[0, 0], 1.0 / a[1, 1], 1.0 / a[2, 2]  # the reciprocal diagonal
     for column in range(3):
         # column ``column`` of P I (I's rows swapped 0 <-> p, then 1 <-> q): its one moves with them
         one = p if column == 0 else (0 if column == p else column)
@@ -121,30 +110,38 @@ def lapack_inverse3(m, a, out):  # pragma: no cover - compiled
         c1 = y1 - (0.0 + a[1, 2] * x2)
         x1 = c1 * d1
         x0 = (c0 - x1 * a[0, 1]) * d0
-        if not (np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2)):
-            return False
         out[0, column], out[1, column], out[2, column] = x0, x1, x2
     return True
 
 
+@numba.njit(inline="always")
+def _scale(a, first, column, pivot):  # pragma: no cover - compiled
+    """The multipliers below the pivot of ``column``, rows ``first`` to 2: times the reciprocal,
+    or divided by a pivot too small to have one."""
+    if abs(pivot) >= SMALLEST_PIVOT:
+        reciprocal = 1.0 / pivot
+        for r in range(first, 3):
+            a[r, column] = a[r, column] * reciprocal
+    else:
+        for r in range(first, 3):
+            a[r, column] = a[r, column] / pivot
+
+
 @numba.njit(cache=True, parallel=True)
-def _lapack_inverse_rows(m, out, done):  # pragma: no cover - compiled
+def _lu_inverse_rows(m, out, done):  # pragma: no cover - compiled
     for e in numba.prange(m.shape[0]):
-        done[e] = lapack_inverse3(m[e], np.empty((3, 3)), out[e])
+        done[e] = lu_inverse3(m[e], np.empty((3, 3)), out[e])
 
 
-def linalg_inv(matrices: np.ndarray) -> np.ndarray:
-    """``np.linalg.inv`` of a stack of 3x3 matrices ``(n, 3, 3)``, bit for bit and without LAPACK's
-    per-matrix call: ``lapack_inverse3`` on every row, ``np.linalg.inv`` itself on the rows it
-    leaves (so a singular matrix raises as numpy's does). Any other shape or dtype is numpy's."""
-    m = np.asarray(matrices)
-    if m.dtype != np.float64 or m.ndim != 3 or m.shape[1:] != (3, 3):
-        return np.linalg.inv(m)
-    m = as_f64(m)
+def lu_inverse(matrices: np.ndarray) -> np.ndarray:
+    """The inverses ``(n, 3, 3)`` of a stack of 3x3 matrices ``(n, 3, 3)`` (``lu_inverse3`` on
+    every row); a singular one raises ``np.linalg.LinAlgError`` as ``np.linalg.inv`` would."""
+    m = as_f64(np.asarray(matrices, dtype=np.float64))
+    if m.ndim != 3 or m.shape[1:] != (3, 3):
+        raise ValueError(f"lu_inverse inverts a stack of 3x3 matrices, not shape {m.shape}")
     out = np.empty_like(m)
     done = np.empty(len(m), dtype=np.bool_)
-    run_rows(_lapack_inverse_rows, m, out, done, parallel=len(m) >= PARALLEL_MIN_BATCH)
+    run_rows(_lu_inverse_rows, m, out, done, parallel=len(m) >= PARALLEL_MIN_BATCH)
     if not done.all():
-        left = ~done
-        out[left] = np.linalg.inv(m[left])
+        raise np.linalg.LinAlgError(f"Singular matrix (row {int(np.argmin(done))} of the stack)")
     return out

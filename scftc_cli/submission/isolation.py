@@ -109,6 +109,7 @@ import functools
 import importlib.util
 import json
 import os
+import platform
 import re
 import resource
 import shutil
@@ -121,7 +122,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from scftc_cli import PINNED_NUMERICS
 from scftc_cli.errors import SubmissionRejected
 from scftc_cli.submission import cgroups
 from scftc_cli.submission.limits import SandboxLimits
@@ -132,6 +132,17 @@ SUBMISSION_DIR = "/submission"  # where the submitted file appears inside (read-
 IMPORTABLE = ("numpy", "scipy")  # third-party packages a submission may import (with ``*.libs``)
 INSTALL_HINT = "apt-get install -y bubblewrap libseccomp2 && pip install pyseccomp"
 MIN_BWRAP = (0, 8, 0)  # --disable-userns, --size
+SUBMISSION_KERNELS = (
+    {"OPENBLAS_CORETYPE": "Haswell", "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"}
+    if platform.machine() in ("x86_64", "AMD64")
+    else {}
+)
+"""The numpy and OpenBLAS kernels a submission's own numpy loads on every x86-64 machine (a value
+the host's environment sets is passed on instead). The benchmark's own arithmetic needs no pin (no
+scored number of the plant, the sensors or a built-in goes through numpy's or OpenBLAS's kernels:
+docs/numerics.md), but a submission's code is its own and may use them; fixing its kernels narrows
+what can differ between the seal's flight and a verifier's on another x86-64 CPU. What remains
+(another architecture, another numpy) ``leaderboard verify`` reports as drift."""
 
 # clone(2) flags
 _CLONE_THREAD = 0x00010000
@@ -347,7 +358,7 @@ def bwrap_argv(
         "PYTHONHASHSEED": "0",
         "PYTHONPATH": SITE,
         **{v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
-        **{k: os.environ.get(k, v) for k, v in PINNED_NUMERICS.items()},  # the same kernels as the host's
+        **{k: os.environ.get(k, v) for k, v in SUBMISSION_KERNELS.items()},
     }
     for key, value in env.items():
         argv += ["--setenv", key, value]

@@ -3,11 +3,12 @@
 The same evaluation runs (a) as the ``scftc`` command, (b) with another OpenBLAS kernel, (c) from a
 process that imported numpy before the package and (d) with numpy's loops for other CPU features,
 and must print the same JSON; and every built-in's golden digests, recomputed under (b), (c) and
-(d), must be the committed ones. On a CPU without AVX-512 (b) uses the Sandybridge kernel and (d)
-changes nothing numpy can use there: the test still runs, it checks less.
+(d), must be the committed ones. The package pins no kernel (numpy and OpenBLAS pick theirs by
+CPU), so (b) forces OpenBLAS's Sandybridge kernel and (d) takes away numpy's AVX-512 loops (on a CPU
+without AVX-512, its AVX2 ones).
 
-``KNOWN`` lists the built-ins whose arithmetic is not yet the project's own, with the reason; each
-leaves in the numerics epoch that owns it. Only their digests may differ, and only they.
+``KNOWN`` lists the built-ins whose arithmetic is not yet the project's own, with the reason: none
+since numerics epoch 2. Only their digests may differ, and only they.
 """
 
 from __future__ import annotations
@@ -20,14 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from scftc_cli import PINNED_NUMERICS
 from tests.golden.digests import golden_path
 
 REPO = Path(__file__).resolve().parents[2]
 
-KNOWN = {
-    ("scftc-v2", "fdir"): "its null vector comes from LAPACK's SVD (moves under OpenBLAS's SkylakeX kernel)",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 def _avx512() -> bool:
@@ -37,8 +35,8 @@ def _avx512() -> bool:
         return False
 
 
-OTHER_KERNEL = "SkylakeX" if _avx512() else "Sandybridge"
-OTHER_LOOPS = "" if PINNED_NUMERICS.get("NPY_DISABLE_CPU_FEATURES") else "X86_V4"
+OTHER_KERNEL = "Sandybridge"
+OTHER_LOOPS = "X86_V4 AVX512_ICL AVX512_SPR" if _avx512() else "X86_V3"
 VARIANTS = {
     "cli": ({}, False),
     "openblas-kernel": ({"OPENBLAS_CORETYPE": OTHER_KERNEL}, False),

@@ -8,10 +8,11 @@ from __future__ import annotations
 import math
 
 import mpmath
+import numba
 import numpy as np
 import pytest
 
-from scftc_cli.sim.elementary import arccos, arctan, arctan2, cosine, sine, tangent
+from scftc_cli.sim.elementary import arccos, arctan, arctan2, cosine, exp, log1p, sine, tangent
 
 mpmath.mp.prec = 200
 RNG = np.random.default_rng(20261128)
@@ -103,3 +104,74 @@ def test_the_array_forms_keep_the_shape(shape):
         assert function(x).shape == shape
         np.testing.assert_allclose(function(x), numpy_form(x), rtol=1e-15, atol=0.0)
     assert arctan2(x, 1.0).shape == shape
+
+
+@numba.njit
+def _scalar_map(function, x):  # pragma: no cover - compiled
+    out = np.empty_like(x)
+    for i in range(x.size):
+        out[i] = function(x[i])
+    return out
+
+
+def _exponential(x: np.ndarray) -> np.ndarray:
+    return _scalar_map(exp, x)
+
+
+def _log1p(x: np.ndarray) -> np.ndarray:
+    return _scalar_map(log1p, x)
+
+
+LN2 = math.log(2.0)
+WEDGE = RNG.uniform(0.0, 3.7, 4000)
+EXP_ARGS = np.concatenate(
+    [
+        -0.5 * WEDGE * WEDGE,  # the ziggurat's wedges: exp(-x^2 / 2) for x up to r = 3.654
+        RNG.uniform(-708.39, 709.78, 1000),  # every normal result
+        np.exp(RNG.uniform(-745.0, 0.0, 300)) * RNG.choice([-1.0, 1.0], 300),
+        (np.arange(-40, 41) + 0.5) * LN2,  # either side of the reduction's steps
+        _edges([0.5 * LN2, -0.5 * LN2, 2.0**-54, -(2.0**-54), 2.0**-53, -(2.0**-53), 1e-300, -1e-300]),
+        _edges([709.782712893384, -708.3964185322641, 1.0, -1.0]),  # the largest, the smallest normal
+        [0.0, -0.0, 5e-324, -5e-324],
+        np.arange(1, 64) * 2.0**-53,  # 1 + x is a tie for x an odd multiple of 2^-53 (or -2^-54)
+        np.arange(1, 64) * -(2.0**-54),
+    ]
+)
+TAIL = RNG.integers(0, 2**53, 4000) * 2.0**-53
+LOG1P_ARGS = np.concatenate(
+    [
+        -TAIL,  # the ziggurat's tail: log1p(-u) for u in [0, 1), 53 bits
+        -(RNG.random(1000) ** 8),  # small u
+        np.exp(RNG.uniform(-60.0, 709.0, 1000)),
+        _edges([math.sqrt(2.0) - 1.0, math.sqrt(0.5) - 1.0, 1.0, -0.5, 2.0**-54, -(2.0**-54)]),
+        _edges([1e-300, -1e-300, 1e300, -1.0 + 2.0**-53]),
+        [0.0, -0.0, 5e-324, -5e-324, 2.0**-1022, -(2.0**-1022), 1.7976931348623157e308],
+    ]
+)
+
+
+@pytest.mark.parametrize(
+    ("function", "reference", "args"),
+    [(_exponential, mpmath.exp, EXP_ARGS), (_log1p, mpmath.log1p, LOG1P_ARGS[LOG1P_ARGS > -1.0])],
+    ids=["exp", "log1p"],
+)
+def test_exp_and_log1p_are_correctly_rounded(function, reference, args):
+    wrong = _wrong(function(args), reference, args)
+    assert not wrong, f"{len(wrong)} of {args.size} arguments not correctly rounded, e.g. {wrong[:5]}"
+
+
+def test_exp_and_log1p_special_values():
+    inf, nan = math.inf, math.nan
+    got = _exponential(np.array([inf, -inf, nan, 709.8, -745.2, 0.0, -0.0]))
+    assert got[0] == inf and got[1] == 0.0 and math.isnan(got[2]) and got[3] == inf and got[4] == 0.0
+    assert got[5] == got[6] == 1.0
+    got = _log1p(np.array([-1.0, -1.5, -inf, nan, inf, 0.0, -0.0, -5e-324]))
+    assert got[0] == -inf and np.isnan(got[1:4]).all() and got[4] == inf
+    assert [math.copysign(1.0, g) for g in got[5:]] == [1.0, -1.0, -1.0] and got[7] == -5e-324
+
+
+def test_exp_is_faithful_where_the_result_is_subnormal():
+    x = np.concatenate([RNG.uniform(-745.13, -708.4, 2000), [-745.1332191019411, -745.1332191019412]])
+    got = _exponential(x)
+    exact = np.array([float(mpmath.exp(mpmath.mpf(v)) / mpmath.mpf(2) ** -1074) for v in x])
+    assert np.all(np.abs(got / 5e-324 - exact) < 1.0)

@@ -1,8 +1,13 @@
 """``sim/pcg64.py`` draws numpy's own numbers: PCG64's stream and the ziggurat's normals, its rare
-branches included, and leaves the states where numpy's generators leave them."""
+branches included, and leaves the states where numpy's generators leave them. The one difference is
+by design: the tail beyond ``r`` takes the project's correctly rounded ``log1p`` where numpy calls
+libm's, so a tail draw can differ from numpy's in its last bit (here, glibc's ``log1p`` is one ulp
+off on a few arguments in a hundred; about one tail draw in 200 moves)."""
 
 from __future__ import annotations
 
+import mpmath
+import numba
 import numpy as np
 import pytest
 
@@ -13,7 +18,7 @@ def _generators(n: int) -> list[np.random.Generator]:
     return [np.random.Generator(np.random.PCG64(np.random.SeedSequence([e, 2024, 7]))) for e in range(n)]
 
 
-def test_normals_are_numpys_to_the_bit_tails_included():
+def test_normals_are_numpys_to_the_bit_but_a_tails_last_bit():
     generators = _generators(64)
     for generator in generators:
         generator.uniform(size=3)  # a stream already drawn from (as the sensors' gyro bias does)
@@ -21,10 +26,37 @@ def test_normals_are_numpys_to_the_bit_tails_included():
     drawn = np.empty((64, 40_000))
     pcg64.fill_standard_normal(states, drawn)
     expected = np.stack([generator.standard_normal(40_000) for generator in generators])
-    np.testing.assert_array_equal(drawn, expected)
+    tail = np.abs(expected) > pcg64._R
+    np.testing.assert_array_equal(drawn[~tail], expected[~tail])  # the body and the wedges (exp)
+    assert np.all(np.abs(drawn[tail] - expected[tail]) <= np.spacing(np.abs(expected[tail])))
     np.testing.assert_array_equal(states, pcg64.states_of(generators))  # same place in the stream
     # not vacuous: the ziggurat's slow paths (wedges, and the tail beyond r) were taken
-    assert np.sum(np.abs(expected) > 3.6541528853610088) > 50
+    assert np.sum(tail) > 50
+
+
+@numba.njit
+def _tails(state: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    for e in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[e, j] = pcg64._tail(state, e, False)
+
+
+def test_the_tail_is_numpys_with_a_correctly_rounded_log1p():
+    generators = _generators(20)
+    states = pcg64.states_of(generators)
+    drawn = np.empty((20, 500))
+    _tails(states, drawn)
+    with mpmath.workprec(200):
+        for e, generator in enumerate(generators):  # numpy's tail on numpy's stream, mpmath's log1p
+            for j in range(500):
+                while True:
+                    u1, u2 = (int(w >> 11) * 2.0**-53 for w in generator.bit_generator.random_raw(2))
+                    xx = -pcg64._INV_R * float(mpmath.log1p(-u1))
+                    yy = -float(mpmath.log1p(-u2))
+                    if yy + yy > xx * xx:
+                        break
+                assert drawn[e, j] == pcg64._R + xx, (e, j)
+    np.testing.assert_array_equal(states, pcg64.states_of(generators))
 
 
 def test_fill_continues_where_it_stopped():

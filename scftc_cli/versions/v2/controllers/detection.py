@@ -54,7 +54,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge, WheelKnowledge
-from scftc_cli.sim.products import chain3, split_dot3
+from scftc_cli.sim.products import chain3, split_dot3, split_matvec3, sum_rows
 from scftc_cli.sim.rows import HEAVY_PARALLEL_MIN_BATCH, as_f64, run_rows
 from scftc_cli.sim.scalars import clip, inverse3
 
@@ -324,6 +324,14 @@ def _pin_rows(theta, cov, j, clipped, move, moved):  # pragma: no cover - compil
         theta[r, j] = clipped[r]
 
 
+def over_buffer(terms: np.ndarray) -> np.ndarray:
+    """The sum of ``terms`` ``(B, ...)`` over the ring buffer's slots, in slot order ``0 .. B-1``
+    left to right from the first (``products.sum_rows``' order: ``((t0 + t1) + t2) + ...``), the
+    total then added to +0.0 (so a sum of -0.0 terms is +0.0): ``(...)``. Each term is computed,
+    and rounded, before it is added (no ``fma``)."""
+    return 0.0 + sum_rows(np.swapaxes(terms, 0, 1))
+
+
 class WheelMonitor:
     """Detection and re-identification of every wheel of a batch (module docstring).
 
@@ -476,7 +484,15 @@ class WheelMonitor:
         every quantity below is a wheel's own, so the same bits as over the whole batch. The
         monitor's arrays are its own (``observe`` already adds into ``A`` and ``y`` in place, and
         the full solve of the step made ``theta`` and ``cov`` afresh), so those rows are written in
-        place."""
+        place.
+
+        The order of the window's sums: the residuals' running sums from the newest sample to the
+        oldest, each the one before plus the next residual; a sample's fit ``x . theta`` is
+        ``products.split_matvec3``'s ``(x0 t0 + x2 t2) + x1 t1``, then +0.0; the squared
+        residuals, the refit's ``sum x x'`` and ``sum x tau`` over the buffer are ``over_buffer``'s
+        (each product rounded, then added slot by slot from slot 0). These are the orders numpy's
+        ``cumsum``, ``einsum`` and ``sum`` took here when the boards were sealed, written down, so
+        the bits did not move."""
         s = self.s
         at = np.flatnonzero(alarm.any(axis=1))  # episodes with an alarmed wheel
         alarmed = alarm[at]
@@ -491,22 +507,25 @@ class WheelMonitor:
         buf_x, buf_tau, buf_ok = self.buf_x[:, at], self.buf_tau[:, at], self.buf_ok[:, at]
         z = self.buf_z[:, at][order]  # (B, a, m), newest first
         tested = self.buf_tested[:, at][order].cumsum(axis=0)
-        glr = z.cumsum(axis=0) ** 2 / np.maximum(tested, 1)
+        running = z.copy()  # the sums of the newest j residuals, added from the newest on
+        for i in range(1, len(running)):
+            running[i] = running[i - 1] + z[i]
+        glr = running**2 / np.maximum(tested, 1)
         j = np.arange(1, s.buffer + 1)[:, None, None]
         glr = np.where(j <= since[None], glr, -1.0)
         length = np.argmax(glr, axis=0) + 1  # (a, m)
         inside = (age < length[None]) & buf_ok  # (B, a, m)
-        fitted = np.einsum("bnmi,nmi->bnm", buf_x, theta)
+        fitted = np.moveaxis(split_matvec3(np.moveaxis(buf_x, 0, -2), theta), -1, 0)  # (B, a, m)
         resid = (buf_tau - fitted) / self.sigma
         count = inside.sum(axis=0)
-        mse = (resid * resid * inside).sum(axis=0) / np.maximum(count, 1)
+        mse = over_buffer(resid * resid * inside) / np.maximum(count, 1)
         changed = alarmed & ((mse > s.consistent) | (count == 0))
         change = np.zeros_like(alarm)
         change[at] = changed
         if changed.any():
             xw = buf_x * inside[..., None] / self.sigma
-            A_new = np.einsum("bnmi,bnmj->nmij", xw, xw)
-            y_new = np.einsum("bnmi,bnm->nmi", xw, buf_tau / self.sigma)
+            A_new = over_buffer(xw[..., :, None] * xw[..., None, :])
+            y_new = over_buffer(xw * (buf_tau / self.sigma)[..., None])
             self.A[at] = np.where(changed[..., None, None], A_new, self.A[at])
             self.y[at] = np.where(changed[..., None], y_new, self.y[at])
             self.prior[at] = np.where(changed[..., None], theta, self.prior[at])

@@ -91,6 +91,27 @@ def pseudo_inverse3(matrix: np.ndarray, damping: float = 1e-12) -> np.ndarray:
     return pseudo_inverse(matrix, damping, invert=inv3, floor_zero_trace=False)
 
 
+def null_direction(axes: np.ndarray) -> np.ndarray:
+    """The null direction ``n`` ``(4,)`` of four wheels' spin axes ``G`` ``(3, 4)`` (``G n = 0``):
+    the signed 3x3 minors ``n_j = (-1)^j det(G without column j)``, each determinant
+    ``(a (e i - f h) + b (f g - d i)) + c (d h - e g)`` of its rows ``(a b c), (d e f), (g h i)``
+    (products rounded, then added in that order), scaled so that its largest entry in magnitude is
+    one and its entries sum to a positive number (``(1, 1, 1, 1)`` for the pyramid). Exact where
+    the minors are, with no library's choice of sign or scale."""
+    axes = np.asarray(axes, dtype=np.float64)
+    if axes.shape != (3, 4):
+        raise ValueError(f"fdir's null-space dither needs four wheels: spin axes {axes.shape[::-1]}")
+    minors = np.empty(4)
+    for j in range(4):
+        (a, b, c), (d, e, f), (g, h, i) = np.delete(axes, j, axis=1).tolist()
+        minors[j] = (-1.0) ** j * ((a * (e * i - f * h) + b * (f * g - d * i)) + c * (d * h - e * g))
+    largest = np.abs(minors).max()
+    if not largest > 0.0:
+        raise ValueError("fdir's null-space dither needs spin axes of full rank")
+    total = ((minors[0] + minors[1]) + minors[2]) + minors[3]
+    return minors / (largest if total > 0.0 else -largest)
+
+
 def load_fdir_params(path: Path | None = None) -> FDIRParams:
     """The committed (or ``path``'s) tuned parameters."""
     return FDIRParams(**(load_params(NAME, path).params if path else committed_params(NAME, V2.version)))
@@ -115,7 +136,7 @@ class FDIR(Controller):
         assert context.sensors is not None  # wheels_of checked it
         self.filter = MEKF(n, context.sensors, context.dt_s, self.params.mekf())
         self.monitor = WheelMonitor(n, self.wheels, context.sensors, context.dt_s, self.params.detector())
-        self.null = np.linalg.svd(self.wheels.spin_axes.T)[2][-1]  # (m,): G n = 0
+        self.null = null_direction(self.wheels.spin_axes.T)  # (m,): G n = 0
         self.k = 0
 
     def act(self, obs: np.ndarray) -> np.ndarray:

@@ -42,6 +42,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
+from scftc_cli.sim.products import split_matvec3, sum_rows
 from scftc_cli.sim.rows import CHUNK_ROWS, HEAVY_PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.adaptive import predicted_torque, sample_weight
 from scftc_cli.versions.v2.controllers.estimators import (
@@ -336,7 +337,9 @@ class ICLAdaptive(Tuned, EstimatingPort):
             self.filled[changed] = 0
             self.since[changed] = 0
             self.purged += changed
-        mean = self.ring.mean(axis=0)
+        # the window means of a, s and z: the ring's slots added left to right from slot 0
+        # (products.sum_rows' order), over the window length
+        mean = sum_rows(np.swapaxes(self.ring[:, :3], 0, 1)) / p.window
         whole = (self.ring[:, 3] > 0.5).all(axis=0) & (self.filled >= p.window)[:, None]
         window_y = np.stack((mean[0], np.ones_like(mean[0]), mean[1]), axis=-1)
         stack_offer(self.ys, self.us, self.used, window_y, mean[2], whole, p.replace_margin)
@@ -345,9 +348,10 @@ class ICLAdaptive(Tuned, EstimatingPort):
         # purged by the transient of its own convergence)
         self.armed = (spread >= ARM_LAMBDA) & self.used.all(axis=-1)
         x = sample.regressor()
-        err = target - np.einsum("nmi,nmi->nm", x, self.phi)
+        # x . phi and x . x as products.split_matvec3's (x0 p0 + x2 p2) + x1 p1, then +0.0
+        err = target - split_matvec3(x[..., None, :], self.phi)[..., 0]
         weight = sample_weight(linear, censored)
-        inst = (weight * err / (1.0 + np.einsum("nmi,nmi->nm", x, x)))[..., None] * x
+        inst = (weight * err / (1.0 + split_matvec3(x[..., None, :], x)[..., 0]))[..., None] * x
         rates = np.array([1.0, p.offset_ratio, p.friction_ratio])  # the diagonal adaptation gain
         phi = self.phi + rates * (p.gamma_cl * direction + p.gamma_inst * inst)
         phi[..., 0] = np.clip(phi[..., 0], -p.g_max, p.g_max)

@@ -30,7 +30,7 @@ from scftc_cli.protocol import Context, WheelKnowledge
 from scftc_cli.sim.mrp import cross, norm2
 from scftc_cli.sim.products import chain4, chain_entry, matmul, split_dot3, split_matvec3
 from scftc_cli.sim.rows import PARALLEL_MIN_BATCH, as_f64, run_rows
-from scftc_cli.sim.scalars import linalg_inv
+from scftc_cli.sim.scalars import lu_inverse
 
 KP_S2 = 0.04  # the calibration point (as scftc-v1)
 KD_S = 0.14
@@ -249,15 +249,15 @@ def friction_nm(
 def pseudo_inverse(
     matrix: np.ndarray,
     damping: float = 1e-12,
-    invert: Callable[[np.ndarray], np.ndarray] = linalg_inv,
+    invert: Callable[[np.ndarray], np.ndarray] = lu_inverse,
     floor_zero_trace: bool = True,
 ) -> np.ndarray:
     """``M' (M M' + eps I)^-1`` ``(n, m, 3)`` of ``(n, 3, m)`` matrices of full row rank: their
     pseudo-inverse, in closed form (a 3x3 inverse per row, vectorized over the batch); ``eps``
     (relative to the trace, floored for an all-zero matrix, whose pseudo-inverse is zero) keeps it
-    finite when a row loses rank. ``invert`` inverts the ``(n, 3, 3)`` stack (``np.linalg.inv``'s
-    bits by default, compiled: ``linalg_inv``); without ``floor_zero_trace`` an all-zero matrix gets
-    no damping (``fdir``'s form).
+    finite when a row loses rank. ``invert`` inverts the ``(n, 3, 3)`` stack (by default
+    ``sim/scalars.lu_inverse``, LU with partial pivoting); without ``floor_zero_trace`` an all-zero
+    matrix gets no damping (``fdir``'s form).
 
     The products run compiled (``_gram_rows``, ``_pinv_rows``) around ``invert``, each product
     entry ``sim/products.py``'s multiply-add chain; a matrix of another shape runs numpy's array

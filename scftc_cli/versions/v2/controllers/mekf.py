@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from scftc_cli.protocol import SensorKnowledge
+from scftc_cli.sim.elementary import arctan, atan, cosine, sine
 from scftc_cli.sim.mrp import compose, norm2
 from scftc_cli.sim.mrp_fused import compose_row, norm2_row
 from scftc_cli.sim.products import chain_entry, matmul, split_dot3, sum_rows
@@ -98,21 +99,23 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 def rotation_matrix(phi: np.ndarray) -> np.ndarray:
     """``exp(-[phi x])`` ``(n, 3, 3)``, the DCM of a body rotation by ``phi`` ``(n, 3)`` rad
-    (Rodrigues' formula, series below 1e-4 rad)."""
+    (Rodrigues' formula, series below 1e-4 rad; ``sin`` and ``cos`` are ``sim/elementary``'s,
+    correctly rounded)."""
     angle2 = norm2(phi)
     angle = np.sqrt(angle2)
     small = angle < 1e-4
     safe = np.where(small, 1.0, angle)
-    a = np.where(small, 1.0 - angle2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - angle2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    a = np.where(small, 1.0 - angle2 / 6.0, sine(safe) / safe)
+    b = np.where(small, 0.5 - angle2 / 24.0, (1.0 - cosine(safe)) / (safe * safe))
     k = skew(phi)
     return np.eye(3) - a[:, None, None] * k + b[:, None, None] * matmul(k, k)
 
 
 def rotation_vector(sigma: np.ndarray) -> np.ndarray:
-    """Rotation vector ``4 atan(|sigma|) sigma / |sigma|`` ``(n, 3)`` rad of small MRPs ``(n, 3)``."""
+    """Rotation vector ``4 atan(|sigma|) sigma / |sigma|`` ``(n, 3)`` rad of small MRPs ``(n, 3)``
+    (``atan`` is ``sim/elementary``'s, correctly rounded)."""
     size = np.sqrt(norm2(sigma))
-    ratio = np.where(size > 1e-12, 4.0 * np.arctan(size) / np.where(size > 1e-12, size, 1.0), 4.0)
+    ratio = np.where(size > 1e-12, 4.0 * arctan(size) / np.where(size > 1e-12, size, 1.0), 4.0)
     return ratio[:, None] * sigma
 
 
@@ -192,17 +195,16 @@ class MEKF:
         prediction ``nis`` ``(n, h)`` (``S = P_tt + R``), and the inter-head outliers ``(n, h)``
         among the ``candidate`` heads: a head that disagrees with every other candidate head
         (``|nu_h - nu_j|^2 / 2R`` above the gate, chi-square with 3 dof) while at least one other
-        candidate is no outlier. Two compiled passes around numpy's ``arctan`` (whose SIMD loop is
-        not libm's ``atan``: they differ in the last bit on about one value in a thousand;
-        tests/oracles/v2_mekf.py holds a readable numpy form, the same bits)."""
+        candidate is no outlier. Two compiled passes, the rotation vector's ``atan`` that of
+        ``sim/elementary`` (correctly rounded: the same bits as the numpy form's
+        ``elementary.arctan``; tests/oracles/v2_mekf.py holds that readable form, the same bits)."""
         n, h = len(heads), self.heads
         v, size = np.empty((h, n, 3)), np.empty((h, n))
         parallel = n >= PARALLEL_MIN_BATCH
         run_rows(_branch_rows, as_f64(heads), as_f64(self.sigma), v, size, parallel=parallel)
-        turned = np.stack([np.arctan(size[i]) for i in range(h)])  # one (n,) call per head, as the numpy form
         nu, nis, outlier = np.empty((n, h, 3)), np.empty((n, h)), np.empty((n, h), dtype=np.bool_)
         run_rows(
-            _head_test_rows, v, size, turned, self.P, float(self.r_var), float(2.0 * self.r_var),
+            _head_test_rows, v, size, self.P, float(self.r_var), float(2.0 * self.r_var),
             np.ascontiguousarray(candidate, dtype=np.bool_), float(self.s.gate), nu, nis, outlier,
             parallel=parallel,
         )  # fmt: skip
@@ -425,19 +427,20 @@ def _branch_rows(heads, sigma, v, size):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def _head_test_rows(
-    v, size, turned, P, r_var, two_r_var, candidate, gate, nu, nis, outlier
+    v, size, P, r_var, two_r_var, candidate, gate, nu, nis, outlier
 ):  # pragma: no cover - compiled
-    """``MEKF._head_tests`` from ``_branch_rows``' ``v`` and ``size`` and numpy's
-    ``arctan(size)`` (``turned``): the rotation vectors ``nu``, their ``nis`` against ``S = P_tt +
-    r I`` (the three-operand einsum's order: every product ``nu_i S^-1_ij nu_j`` added in turn, i
-    then j, to +0.0: einsum adds them from the first product and then to +0.0, which differs only
-    in the sign of a zero sum, and that ends +0.0 either way) and the outliers (``np.min``'s NaN kept)."""
+    """``MEKF._head_tests`` from ``_branch_rows``' ``v`` and ``size``: the rotation vectors ``nu``
+    (``v`` times ``4 atan(size) / size``, ``atan`` of ``sim/elementary``), their ``nis`` against
+    ``S = P_tt + r I`` (the three-operand einsum's order: every product ``nu_i S^-1_ij nu_j`` added
+    in turn, i then j, to +0.0: einsum adds them from the first product and then to +0.0, which
+    differs only in the sign of a zero sum, and that ends +0.0 either way) and the outliers
+    (``np.min``'s NaN kept)."""
     heads = v.shape[0]
     for e in numba.prange(v.shape[1]):
         s_inv = np.empty((3, 3))
         inverse3(_innovation_covariance(P[e], r_var), s_inv)
         for h in range(heads):
-            ratio = 4.0 * turned[h, e] / size[h, e] if size[h, e] > 1e-12 else 4.0
+            ratio = 4.0 * atan(size[h, e]) / size[h, e] if size[h, e] > 1e-12 else 4.0
             for i in range(3):
                 nu[e, h, i] = ratio * v[h, e, i]
             total = 0.0

@@ -34,6 +34,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context, Controller
+from scftc_cli.sim.elementary import cosine
 from scftc_cli.sim.mrp import cross
 from scftc_cli.sim.products import matmul
 from scftc_cli.versions.v2.controllers.law import (
@@ -65,8 +66,9 @@ class NussbaumParams:
 
 
 def nussbaum_gain(zeta: np.ndarray, zeta0: float) -> np.ndarray:
-    """``N(zeta) = zeta^2 cos(zeta)``, scaled so that ``N(zeta0) = 1``; any shape."""
-    return zeta**2 * np.cos(zeta) / (zeta0**2 * np.cos(zeta0))
+    """``N(zeta) = zeta^2 cos(zeta)``, scaled so that ``N(zeta0) = 1``; any shape. ``cos`` is
+    ``elementary.cosine`` (correctly rounded), the squares products ``x * x``."""
+    return zeta * zeta * cosine(zeta) / (zeta0 * zeta0 * cosine(zeta0))
 
 
 class Nussbaum(Tuned, Controller):

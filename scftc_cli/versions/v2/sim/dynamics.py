@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING, Self
 import numpy as np
 
 from scftc_cli.sim.mrp import cross, dot, norm2, shadow_switch
+from scftc_cli.sim.products import sum_rows
+from scftc_cli.sim.scalars import lu_inverse
 from scftc_cli.sim.testbed import Plant
 from scftc_cli.versions.v2.spec import V2, ReactionWheelPlant
 
@@ -159,7 +161,9 @@ class MassProperties:
     Attributes:
         total_inertia_kgm2: ``I_tot`` ``(n, 3, 3)``.
         coupled_inertia_inv: ``D^-1`` ``(n, 3, 3)``; ``w_dot = D^-1 rhs`` (one inverse shared by
-            every backend built on this module, so the fused kernel sees the same numbers).
+            every backend built on this module, so the fused kernel sees the same numbers), by
+            ``sim/scalars.lu_inverse``: LU with partial pivoting in its stated order (``D`` of the
+            benchmark's wheel array is diagonal, and its inverse then the reciprocal diagonal).
     """
 
     total_inertia_kgm2: np.ndarray
@@ -169,7 +173,7 @@ class MassProperties:
     def of(cls, constants: WheelConstants, inertia_scale: np.ndarray) -> MassProperties:
         """Mass properties of episodes with hub inertia scales ``inertia_scale`` ``(n,)``."""
         total = np.ascontiguousarray(constants.total_inertia_kgm2(inertia_scale))
-        inv = np.ascontiguousarray(np.linalg.inv(constants.coupled_inertia_kgm2(inertia_scale)))
+        inv = np.ascontiguousarray(lu_inverse(constants.coupled_inertia_kgm2(inertia_scale)))
         return cls(total, inv)
 
 
@@ -319,7 +323,7 @@ def kinetic_energy_j(
     Omega_i g_i . w)``. Its rate is the power ``sum_i Omega_i (u_i + fr_i)`` of motors and friction."""
     hub = 0.5 * dot(omega_rad_s, _matvec(mass.total_inertia_kgm2, omega_rad_s))
     spin = wheel_speed_rad_s * (0.5 * wheel_speed_rad_s + _onto_axes(constants.axes, omega_rad_s))
-    return hub + constants.js_kgm2 * spin.sum(axis=1)
+    return hub + constants.js_kgm2 * sum_rows(spin)
 
 
 def _as_batch(name: str, x: np.ndarray, shape: tuple[int, ...], dtype: type = np.float64) -> np.ndarray:

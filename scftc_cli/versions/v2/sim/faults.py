@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scftc_cli.errors import UsageError
+from scftc_cli.sim.elementary import tangent
 from scftc_cli.sim.episodes import Episodes, generator, seed_sequence, unit_norm
 from scftc_cli.spec import BenchmarkSpec, FaultClass
 from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S
@@ -146,9 +147,9 @@ def sample_initial_state(
 
 
 def head_bias_mrp(axis: np.ndarray, angle_deg: float) -> np.ndarray:
-    """MRP ``tan(angle/4) axis`` of a rotation about unit ``axis`` (3,), with the scalar libm
-    ``tan`` (numpy's vectorized transcendentals may differ in the last bit between CPUs)."""
-    return math.tan(math.radians(angle_deg) / 4.0) * axis
+    """MRP ``tan(angle/4) axis`` of a rotation about unit ``axis`` (3,), with the project's
+    correctly rounded ``tan`` (``sim/elementary``: the same bits on every CPU and libm)."""
+    return float(tangent(math.radians(angle_deg) / 4.0)) * axis
 
 
 def sample_sensor_fault(
@@ -304,7 +305,7 @@ def sample_episodes_batch(
     v = rng.standard_normal((n, 3))
     axis = v / np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])[:, None]
     angle = np.radians(ranges.head_bias_deg.sample(rng, n))
-    head_bias = np.where((sensor == "st_bias")[:, None], np.tan(angle / 4.0)[:, None] * axis, 0.0)
+    head_bias = np.where((sensor == "st_bias")[:, None], tangent(angle / 4.0)[:, None] * axis, 0.0)
     size = np.radians(ranges.gyro_bias_step_deg_s.sample(rng, (n, 3)))
     step = np.where(
         (sensor == "gyro_bias")[:, None], size * np.where(rng.random((n, 3)) < 0.5, -1.0, 1.0), 0.0

@@ -44,6 +44,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from scftc_cli.sim.elementary import cosine, sine
 from scftc_cli.sim.mrp import cross, norm2, shadow_switch
 from scftc_cli.sim.testbed import Plant
 from scftc_cli.versions.v2.sim.dynamics import (
@@ -203,8 +204,8 @@ class OrbitGeometry:
             mean_motion=mean_motion,
             p=np.ascontiguousarray(p),
             q=np.ascontiguousarray(q),
-            half_cos=np.cos(half),
-            half_sin=np.sin(half),
+            half_cos=cosine(half),
+            half_sin=sine(half),
             dipole_n=np.ascontiguousarray(earth_dipole_n(env.earth_angle_rad, c)),
             pressure_area=c.srp_pressure_n_m2 * env.facet_area_m2,
         )

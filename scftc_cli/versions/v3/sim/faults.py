@@ -26,8 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scftc_cli.sim.elementary import tangent
 from scftc_cli.sim.episodes import Episodes, generator, seed_sequence, unit_norm
-from scftc_cli.sim.mrp import compose
+from scftc_cli.sim.mrp import compose, to_dcm
+from scftc_cli.sim.products import matmul
+from scftc_cli.sim.scalars import inverse3
 from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S, MassProperties
 from scftc_cli.versions.v2.sim.faults import SensorFault, onset_step, sample_sensor_fault
 from scftc_cli.versions.v2.spec import V2
@@ -104,8 +107,9 @@ def unit_vector(rng: np.random.Generator) -> np.ndarray:
 
 
 def rotation_mrp(axis: np.ndarray, angle_deg: float) -> np.ndarray:
-    """MRP ``tan(angle/4) axis`` ``(3,)`` of a rotation about unit ``axis`` (scalar libm ``tan``)."""
-    return math.tan(math.radians(angle_deg) / 4.0) * axis
+    """MRP ``tan(angle/4) axis`` ``(3,)`` of a rotation about unit ``axis`` (``elementary.tangent``
+    of the angle in radians, ``angle_deg * (pi / 180)``, over four)."""
+    return float(tangent(angle_deg * (math.pi / 180.0) / 4.0)) * axis
 
 
 def sample_fault(
@@ -186,7 +190,7 @@ def null_vector(plant: AgilePlant) -> np.ndarray:
     """The unit vector ``(4,)`` of wheel speeds that put no momentum on the hub (``G' n = 0``):
     ``(1, 1, 1, 1) / 2`` for the tetrahedral axes (checked)."""
     null = np.full(plant.n_wheels, 0.5)
-    if np.max(np.abs(np.array(plant.spin_axes).T @ null)) > 1e-12:
+    if np.max(np.abs(matmul(np.array(plant.spin_axes).T, null))) > 1e-12:
         raise ValueError("the wheels' spin axes are not tetrahedral")
     return null
 
@@ -228,18 +232,20 @@ def sample_mission(split: AgileSplit, plant: AgilePlant, rng: np.random.Generato
 
 
 def dcm(sigma: np.ndarray) -> np.ndarray:
-    """``C(sigma)`` ``(3, 3)``: inertial components to body components."""
-    s2 = float(sigma @ sigma)
-    tilde = np.array([[0.0, -sigma[2], sigma[1]], [sigma[2], 0.0, -sigma[0]], [-sigma[1], sigma[0], 0.0]])
-    return np.eye(3) + (8.0 * tilde @ tilde - 4.0 * (1.0 - s2) * tilde) / (1.0 + s2) ** 2
+    """``C(sigma)`` ``(3, 3)``: inertial components to body components (``sim/mrp.to_dcm``)."""
+    return to_dcm(np.asarray(sigma, dtype=np.float64)[None])[0]
 
 
 def three_wheel_load(plant: AgilePlant, dead: int, momentum_b: np.ndarray) -> float:
     """The largest fraction of ``h_max`` the three wheels other than ``dead`` must hold to store
-    ``momentum_b`` ``(3,)`` N m s between them (the unique split along their three axes)."""
+    ``momentum_b`` ``(3,)`` N m s between them (the unique split along their three axes): the
+    adjugate inverse of the three axes (``sim/scalars.inverse3``) times the momentum, each entry a
+    ``products`` multiply-add chain."""
     axes = np.array(plant.spin_axes)
-    working = np.delete(axes, dead, axis=0)
-    per_wheel = np.linalg.solve(working.T, momentum_b)
+    working = np.ascontiguousarray(np.delete(axes, dead, axis=0).T)
+    inverse = np.empty((3, 3))
+    inverse3(working, inverse)
+    per_wheel = matmul(inverse, np.asarray(momentum_b, dtype=np.float64))
     return float(np.max(np.abs(per_wheel))) / plant.h_max_nms
 
 
@@ -251,12 +257,12 @@ def feasible(plant: AgilePlant, fault: DrawnFault, sigma0: np.ndarray, h_b: np.n
     ``feasibility_margin`` of ``h_max``. Faults without a dead wheel always pass."""
     if not fault.dead_wheels:
         return True
-    h_n = dcm(sigma0).T @ h_b
-    size = math.sqrt(float(h_n @ h_n))
+    h_n = matmul(dcm(sigma0).T, h_b)
+    size = math.sqrt(float(matmul(h_n, h_n)))
     scale = max(size - plant.unload_allowance_nms, 0.0) / size if size > 0.0 else 0.0
     first = min(fault.onset_step // plant.window_steps, plant.windows - 1)
     for target in targets[first:]:
-        load = scale * (dcm(target) @ h_n)
+        load = scale * matmul(dcm(target), h_n)
         for dead in fault.dead_wheels:
             if three_wheel_load(plant, dead, load) > plant.feasibility_margin:
                 return False

@@ -12,7 +12,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from scftc_cli.versions.v2.controllers.detection import WheelMonitor, clamped, solved
+from scftc_cli.sim.products import split_matvec3
+from scftc_cli.versions.v2.controllers.detection import WheelMonitor, clamped, over_buffer, solved
 from scftc_cli.versions.v2.controllers.fdir import load_fdir_params
 from scftc_cli.versions.v2.sim.testbed import public_context
 from tests.bits import bits
@@ -130,3 +131,30 @@ def test_the_clamp_moves_every_row_when_one_moves_as_numpy_does() -> None:
         np.testing.assert_array_equal(bits(c), bits(want_cov))
         if pinned is not None and pinned[1] != 1:
             assert not np.signbit(t[3]).all()  # the -0.0 row was moved by 0.0 too
+
+
+def test_the_window_sums_are_in_their_stated_order() -> None:
+    """``over_buffer`` adds the buffer's slots left to right from slot 0, then +0.0 (a sum of -0.0
+    terms is +0.0), exactly; the refit's sums and the samples' fit (``split_matvec3``) are the
+    window's least-squares terms (``einsum``'s contractions) to rounding."""
+    rng = np.random.default_rng(48)
+    B, a, m = 12, 9, 4
+    x = rng.normal(size=(B, a, m, 3)) * 10.0 ** rng.integers(-4, 4, (B, a, m, 1))
+    inside = rng.random((B, a, m)) < 0.6
+    inside[:, 0, 0] = False  # every product a zero, some -0.0
+    tau = rng.normal(size=(B, a, m))
+    theta = rng.normal(size=(a, m, 3))
+    xw = x * inside[..., None] / 0.3
+    terms = xw[..., :, None] * xw[..., None, :]
+    loop = np.zeros(terms.shape[1:])
+    for b in range(B):
+        loop = loop + terms[b]
+    got = over_buffer(terms)
+    np.testing.assert_array_equal(bits(got), bits(loop))
+    assert not np.signbit(got[0, 0]).any() and np.signbit(terms[:, 0, 0]).any()
+    np.testing.assert_allclose(got, np.einsum("bnmi,bnmj->nmij", xw, xw), rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(
+        over_buffer(xw * tau[..., None]), np.einsum("bnmi,bnm->nmi", xw, tau), rtol=1e-12, atol=1e-300
+    )
+    fitted = np.moveaxis(split_matvec3(np.moveaxis(x, 0, -2), theta), -1, 0)
+    np.testing.assert_allclose(fitted, np.einsum("bnmi,nmi->bnm", x, theta), rtol=1e-12, atol=1e-300)

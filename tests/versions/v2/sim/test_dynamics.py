@@ -50,6 +50,29 @@ def test_constants_are_spec_v2():
     np.testing.assert_allclose(c.coupled_inertia_kgm2(scale), hub + 4 / 3 * c.js_kgm2 * np.eye(3), atol=1e-15)
 
 
+def test_the_coupled_inverse_is_the_projects_own():
+    """``MassProperties``' ``D^-1`` comes from ``sim/scalars.lu_inverse`` (no LAPACK): for the
+    benchmark's wheels ``D`` is diagonal and its inverse exactly the reciprocal diagonal; for a
+    tilted wheel array (a full ``D``) it is the inverse to rounding."""
+    scale = np.random.default_rng(3).uniform(0.5, 2.0, 257)
+    coupled = CONSTANTS.coupled_inertia_kgm2(scale)
+    inverse = MassProperties.of(CONSTANTS, scale).coupled_inertia_inv
+    off = ~np.eye(3, dtype=bool)
+    assert (coupled[:, off] == 0.0).all()
+    assert (inverse[:, off] == 0.0).all()
+    np.testing.assert_array_equal(
+        np.diagonal(inverse, axis1=1, axis2=2), 1.0 / np.diagonal(coupled, axis1=1, axis2=2)
+    )
+    axes = np.random.default_rng(4).normal(size=(4, 3))
+    axes /= np.sqrt(norm2(axes))[:, None]
+    tilted = dataclasses.replace(CONSTANTS, spin_axes=tuple(map(tuple, axes)))
+    full = tilted.coupled_inertia_kgm2(scale)
+    assert (np.abs(full[:, off]) > 1e-5).all()  # a full matrix
+    np.testing.assert_allclose(
+        MassProperties.of(tilted, scale).coupled_inertia_inv, np.linalg.inv(full), rtol=1e-12, atol=1e-16
+    )
+
+
 def test_constants_reject_nonsense():
     with pytest.raises(ValueError, match="unit"):
         dataclasses.replace(CONSTANTS, spin_axes=((1.0, 1.0, 0.0),))
