@@ -30,7 +30,6 @@ from scftc_cli.sim.elementary import tangent
 from scftc_cli.sim.episodes import Episodes, generator, seed_sequence, unit_norm
 from scftc_cli.sim.mrp import compose, to_dcm
 from scftc_cli.sim.products import matmul
-from scftc_cli.sim.scalars import inverse3
 from scftc_cli.versions.v2.sim.dynamics import RPM_TO_RAD_S, MassProperties
 from scftc_cli.versions.v2.sim.faults import SensorFault, onset_step, sample_sensor_fault
 from scftc_cli.versions.v2.spec import V2
@@ -239,14 +238,26 @@ def dcm(sigma: np.ndarray) -> np.ndarray:
 def three_wheel_load(plant: AgilePlant, dead: int, momentum_b: np.ndarray) -> float:
     """The largest fraction of ``h_max`` the three wheels other than ``dead`` must hold to store
     ``momentum_b`` ``(3,)`` N m s between them (the unique split along their three axes): the
-    adjugate inverse of the three axes (``sim/scalars.inverse3``) times the momentum, each entry a
+    adjugate inverse of the three axes (``adjugate_inverse``) times the momentum, each entry a
     ``products`` multiply-add chain."""
-    axes = np.array(plant.spin_axes)
-    working = np.ascontiguousarray(np.delete(axes, dead, axis=0).T)
-    inverse = np.empty((3, 3))
-    inverse3(working, inverse)
-    per_wheel = matmul(inverse, np.asarray(momentum_b, dtype=np.float64))
+    working = np.delete(np.array(plant.spin_axes), dead, axis=0).T
+    per_wheel = matmul(adjugate_inverse(working), np.asarray(momentum_b, dtype=np.float64))
     return float(np.max(np.abs(per_wheel))) / plant.h_max_nms
+
+
+def adjugate_inverse(m: np.ndarray) -> np.ndarray:
+    """The inverse ``(3, 3)`` of one 3x3 matrix in Python floats (IEEE float64), in
+    ``sim/scalars.inverse3``'s order: the cofactors ``e i - f h, ...``, ``det = (a c00 + b c10) +
+    c c20``, each entry a cofactor over ``det``. Plain Python, so that drawing an episode compiles
+    nothing."""
+    (a, b, c), (d, e, f), (g, h, i) = np.asarray(m, dtype=np.float64).tolist()
+    cofactors = (
+        (e * i - f * h, c * h - b * i, b * f - c * e),
+        (f * g - d * i, a * i - c * g, c * d - a * f),
+        (d * h - e * g, b * g - a * h, a * e - b * d),
+    )
+    det = (a * cofactors[0][0] + b * cofactors[1][0]) + c * cofactors[2][0]
+    return np.array([[x / det for x in row] for row in cofactors])
 
 
 def feasible(plant: AgilePlant, fault: DrawnFault, sigma0: np.ndarray, h_b: np.ndarray, targets) -> bool:
