@@ -447,6 +447,19 @@ def _atan2_rows(y, x, out):  # pragma: no cover - compiled
         out[i] = atan2(y[i], x[i])
 
 
+@numba.njit(cache=True, parallel=True)
+def _cos_sin_rows(x, out_cos, out_sin):  # pragma: no cover - compiled
+    for i in numba.prange(x.size):
+        v = x[i]
+        if not abs(v) <= _TRIG_LIMIT:
+            out_cos[i], out_sin[i] = np.nan, np.nan
+            continue
+        quadrant, rh, rl = _reduce(v)
+        sh, sl, ch, cl = _sin_cos_dd(rh, rl)
+        out_cos[i] = _sine_in_quadrant(quadrant + 1, sh, sl, ch, cl)
+        out_sin[i] = v if v == 0.0 else _sine_in_quadrant(quadrant, sh, sl, ch, cl)
+
+
 def _unary(which: int, x: np.ndarray | float) -> np.ndarray:
     flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
     out = np.empty_like(flat)
@@ -472,6 +485,15 @@ def sine(x: np.ndarray | float) -> np.ndarray:
 def cosine(x: np.ndarray | float) -> np.ndarray:
     """``cos`` elementwise."""
     return _unary(3, x)
+
+
+def cosine_sine(x: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """``(cos x, sin x)`` elementwise, the same bits as ``cosine`` and ``sine`` for the price of
+    one: both come from one reduction and one pair of series."""
+    flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+    out_cos, out_sin = np.empty_like(flat), np.empty_like(flat)
+    run_rows(_cos_sin_rows, flat, out_cos, out_sin, parallel=flat.size >= PARALLEL_MIN_BATCH)
+    return out_cos.reshape(np.shape(x)), out_sin.reshape(np.shape(x))
 
 
 def tangent(x: np.ndarray | float) -> np.ndarray:

@@ -12,7 +12,7 @@ import numba
 import numpy as np
 import pytest
 
-from scftc_cli.sim.elementary import arccos, arctan, arctan2, cosine, exp, log1p, sine, tangent
+from scftc_cli.sim.elementary import arccos, arctan, arctan2, cosine, cosine_sine, exp, log1p, sine, tangent
 
 mpmath.mp.prec = 200
 RNG = np.random.default_rng(20261128)
@@ -175,3 +175,13 @@ def test_exp_is_faithful_where_the_result_is_subnormal():
     got = _exponential(x)
     exact = np.array([float(mpmath.exp(mpmath.mpf(v)) / mpmath.mpf(2) ** -1074) for v in x])
     assert np.all(np.abs(got / 5e-324 - exact) < 1.0)
+
+
+def test_cosine_sine_is_cosine_and_sine_to_the_bit() -> None:
+    x = np.concatenate(
+        [RNG.uniform(-50.0, 50.0, 20_000), [0.0, -0.0, 1e-300, -5e-324, 2.0**20, 2.0**21, np.nan, np.inf]]
+    ).reshape(4, -1)
+    c, s = cosine_sine(x)
+    assert c.shape == s.shape == x.shape
+    np.testing.assert_array_equal(c.view(np.int64), cosine(x).view(np.int64))
+    np.testing.assert_array_equal(s.view(np.int64), sine(x).view(np.int64))

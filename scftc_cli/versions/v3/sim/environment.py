@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scftc_cli.sim.elementary import cosine, sine
+from scftc_cli.sim.elementary import cosine_sine
 from scftc_cli.sim.mrp import cross, dot
 
 MU_EARTH_M3_S2 = 398600.4418e9
@@ -191,8 +191,8 @@ def orbit_axes(inclination_rad: np.ndarray, raan_rad: np.ndarray) -> tuple[np.nd
 
     ``P = (cos Omega, sin Omega, 0)``, ``Q = (-sin Omega cos i, cos Omega cos i, sin i)``.
     """
-    ci, si = cosine(inclination_rad), sine(inclination_rad)
-    co, so = cosine(raan_rad), sine(raan_rad)
+    ci, si = cosine_sine(inclination_rad)
+    co, so = cosine_sine(raan_rad)
     p = np.stack((co, so, np.zeros_like(co)), axis=1)
     q = np.stack((-(so * ci), co * ci, si), axis=1)
     return p, q
@@ -208,7 +208,7 @@ def latitude_trig(
     how numpy, libm or another library rounds a cosine.
     """
     u = arg_latitude0_rad + mean_motion * time_s
-    return cosine(u), sine(u)
+    return cosine_sine(u)
 
 
 def advance_trig(
@@ -266,7 +266,7 @@ def to_body(sigma: np.ndarray, v: np.ndarray) -> np.ndarray:
 def earth_dipole_n(earth_angle_rad: np.ndarray, constants: EnvironmentConstants) -> np.ndarray:
     """The dipole vector ``m_N = R3(theta)' (g11, h11, g10)`` ``(n, 3)`` in tesla, inertial."""
     g11, h11, g10 = constants.earth_dipole_t
-    c, s = cosine(earth_angle_rad), sine(earth_angle_rad)
+    c, s = cosine_sine(earth_angle_rad)
     return np.stack((c * g11 - s * h11, s * g11 + c * h11, np.full_like(c, g10)), axis=1)
 
 
