@@ -261,6 +261,7 @@ def check_cell(cell: CellResult, n_faults: int, n_seeds: int, where: str) -> Non
 EventAction = Literal[
     "added",
     "rebuilt",
+    "rescored",
     "removed",
     "migrated",
     "sealed",

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from scftc_cli import __version__
-from scftc_cli.board.draws import PUBLIC
+from scftc_cli.board.draws import PUBLIC, salt_from_hex
 from scftc_cli.board.flights import (
     OnEntry,
     Scoring,
@@ -31,6 +31,7 @@ from scftc_cli.board.flights import (
     fly_submission,
     require_same_commands,
     score_builtin,
+    score_submission,
     training_record,
 )
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
@@ -616,6 +617,63 @@ def rebuild(
 
     update_board(board_path, benchmark, swap_in)
     return RebuildReport(seal(board_path, scoring, key, on_entry=None), failed)
+
+
+def rescore(
+    board_path: Path,
+    scoring: Scoring,
+    names: Iterable[str],
+    reason: str,
+    submissions_dir: Path | None = None,
+    on_entry: OnEntry | None = None,
+) -> Leaderboard:
+    """Re-fly sealed entries on their own draws (the public one and their revealed sealed salt)
+    under the running code and record the new numbers, with a ``rescored`` history event: a
+    numerics epoch's re-seal of an entry whose draw must not change (a submission: a new draw would
+    be a second attempt under its name). Nothing is re-rolled and nothing new is revealed; the
+    numbers are what ``verify`` recomputes. The file must be the one sealed (found by sha256)."""
+    benchmark = scoring.spec.version
+    if not reason.strip():
+        raise LeaderboardError("say why with --reason (it is kept in the board's history)")
+    if not scoring.full_size:
+        raise LeaderboardError("a board holds full-size entries only; drop --n-faults/--n-seeds")
+    board = read_board(board_path, benchmark)
+    root = board_path.resolve().parent.parent
+    submissions_dir = submissions_dir or default_submissions_dir(board_path)
+    fresh: dict[str, dict[str, list[CellResult]]] = {}
+    for name in names:
+        entry = board.entry(name)
+        if entry is None or entry.status != "sealed" or entry.sealed_salt is None:
+            sealed = [e.name for e in board.entries if e.status == "sealed"]
+            raise LeaderboardError(
+                f"`{name}` is not a sealed entry of {board_path} (sealed: {', '.join(sealed)})"
+            )
+        start = dt.datetime.now()
+        draws = {"public": PUBLIC, "sealed": salt_from_hex(entry.sealed_salt)}
+        if entry.kind == "builtin":
+            info = registry(benchmark)[name]
+            if artifact_hashes(info) != entry.artifacts:
+                raise LeaderboardError(f"{name}'s parameter or weight files changed: rebuild it, not rescore")
+            fresh[name] = score_builtin(info, scoring, draws)
+        else:
+            path = find_submission_file(entry, submissions_dir, root)
+            if path is None:
+                raise LeaderboardError(
+                    f"{name}'s submitted file is not under {submissions_dir}; pass --submissions"
+                )
+            fresh[name] = score_submission(load_submission(path), scoring, draws)
+        if on_entry is not None:
+            on_entry(name, (dt.datetime.now() - start).total_seconds(), None)
+
+    def record(board: Leaderboard) -> Leaderboard:
+        for name, results in fresh.items():
+            entry = board.entry(name)
+            assert entry is not None  # checked above, under the same board version
+            entry.public, entry.sealed = results["public"], results["sealed"]
+            board.history.append(_event(board, "rescored", name, reason.strip(), entry.round))
+        return board
+
+    return update_board(board_path, benchmark, record)
 
 
 def remove(board_path: Path, benchmark: str, name: str, reason: str) -> Leaderboard:

@@ -94,10 +94,10 @@ ROUND_STATE = {
 def history_problems(board: Leaderboard) -> list[str]:
     """History events the board's state does not bear out: the last event recorded of each entry
     name and each round must say what the board holds now (an entry ``removed`` is not live, one
-    ``sealed`` or ``failed`` in round r is so in round r, one ``added`` or ``moved`` is live; a
-    round's last event matches its status). Every command writes its event and its state together,
-    so a hand-appended event (a competitor "removed", a sealed entry "failed", an open round
-    "abandoned") contradicts the state it claims to describe."""
+    ``sealed`` or ``failed`` in round r is so in round r, one ``rescored`` in round r is sealed in
+    it, one ``added`` or ``moved`` is live; a round's last event matches its status). Every command
+    writes its event and its state together, so a hand-appended event (a competitor "removed", a
+    sealed entry "failed", an open round "abandoned") contradicts the state it claims to describe."""
     last: dict[str, BoardEvent] = {}
     rounds: dict[int, BoardEvent] = {}
     for event in board.history:
@@ -120,8 +120,9 @@ def history_problems(board: Leaderboard) -> list[str]:
             e.status != "failed" and e.added_board_version < event.board_version for e in entries
         ):
             out.append(f"the history says {name} was removed ({event.reason!r}), but it is {now}")
-        elif event.action in ("sealed", "failed") and not any(
-            e.status == event.action and e.round == event.round for e in entries
+        elif event.action in ("sealed", "failed", "rescored") and not any(
+            e.status == ("sealed" if event.action == "rescored" else event.action) and e.round == event.round
+            for e in entries
         ):
             out.append(f"the history says {name} {event.action} in round {event.round}, but it is {now}")
         elif event.action in ("added", "moved") and not entries:

@@ -47,7 +47,7 @@ SubBenchmarkOption = Annotated[
 
 leaderboard_app = typer.Typer(
     help="Show the leaderboard (sealed deployable entries ranked, oracles apart, pending entries listed), "
-    "verify it, and run its rounds (keygen, open, seal, abandon, rebuild: maintainers).",
+    "verify it, and run its rounds (keygen, open, seal, abandon, rebuild, rescore: maintainers).",
     no_args_is_help=False,
     add_completion=False,
     rich_markup_mode=None,  # plain help: flags shown as flags, brackets as written
@@ -252,7 +252,9 @@ def verify_command(
 
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar(f"verifying {board_path}", verify_steps(board, scoring, sample)) as progress,
+        progress_bar(
+            f"verifying {board_path}", verify_steps(board, scoring, sample), benchmark=bench
+        ) as progress,
     ):
         report = verify(
             board_path,
@@ -511,7 +513,7 @@ def rebuild_command(
     total = len(names) * steps_per_entry(scoring) + 2 * len(waiting) * steps_per_entry(scoring, 1)
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar(f"scoring {len(names)} controllers", total) as progress,
+        progress_bar(f"scoring {len(names)} controllers", total, benchmark=bench) as progress,
     ):
         report = rebuild(
             board_path, replace(scoring, progress=progress, runner=runner), key, only, _report_entry
@@ -528,6 +530,43 @@ def rebuild_command(
             f"could not score {', '.join(report.failed)} (left off the board); fix them and run "
             f"`scftc leaderboard rebuild --only NAME`"
         )
+
+
+@leaderboard_app.command("rescore")
+@exits_cleanly
+def rescore_command(
+    ctx: typer.Context,
+    names: Annotated[list[str], typer.Argument(help="The sealed entries to re-fly.", show_default=False)],
+    reason: Annotated[str, typer.Option(help="Why (kept in the board's history): the numerics epoch.")],
+    leaderboard: BoardOption = None,
+    benchmark: SubBenchmarkOption = None,
+    submissions: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
+        ),
+    ] = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
+) -> None:
+    """Re-fly sealed entries on their own draws (public and their revealed sealed salt) under the
+    running code and record the new numbers (maintainers, in a numerics epoch: docs/numerics.md).
+    Nothing is re-rolled; `verify` recomputes the same numbers."""
+    from scftc_cli.board.flights import Scoring, steps_per_entry
+    from scftc_cli.board.ops import rescore
+    from scftc_cli.distributed.runner import cluster
+    from scftc_cli.spec import get_spec
+
+    board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    scoring = Scoring(get_spec(bench))
+    total = len(names) * steps_per_entry(scoring, 2)
+    with (
+        cluster(workers, scheduler) as runner,
+        progress_bar(f"re-flying {len(names)} entries", total, benchmark=bench) as progress,
+    ):
+        scoring = replace(scoring, progress=progress, runner=runner)
+        board = rescore(board_path, scoring, names, reason, submissions, _report_entry)
+    _says_where(board_path, board.version, f"rescored {', '.join(f'`{n}`' for n in names)}")
 
 
 @leaderboard_app.command("remove")

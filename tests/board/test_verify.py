@@ -300,3 +300,32 @@ def test_the_margins_stay_in_memory():
     assert cell.result.settled_margin_deg is not None
     assert "settled_margin_deg" not in cell.result.model_dump_json()
     assert "settled_margin_deg" not in json.dumps(Leaderboard.model_json_schema())
+
+
+@pytest.mark.slow
+def test_rescore_re_flies_an_entry_on_its_own_draws_and_records_it(board: Path, small_registry: None):
+    """A numerics epoch moves an entry's numbers (simulated: a number edited); ``rescore`` re-flies
+    it on the same public draw and sealed salt, records the new numbers and a ``rescored`` event,
+    and the board verifies again. Nothing is re-rolled."""
+    doc = json.loads(board.read_text())
+    salt = doc["entries"][1]["sealed_salt"]
+    doc["entries"][1]["sealed"][2]["final_error_deg"]["median"] = 0.5
+    board.write_text(json.dumps(doc, indent=1))
+    assert _verify(board).exit_code == 1
+    args = ["leaderboard", "rescore", "--leaderboard", str(board)]
+    refused = runner.invoke(app, [*args, "nobody", "--reason", "numerics epoch 9"])
+    assert refused.exit_code == 1 and "`nobody` is not a sealed entry" in refused.stderr
+    assert "Traceback" not in refused.output
+    result = runner.invoke(app, [*args, "teacher", "--reason", "numerics epoch 9"])
+    assert result.exit_code == 0, result.output
+    after = json.loads(board.read_text())
+    assert after["entries"][1]["sealed_salt"] == salt
+    assert after["entries"][1]["sealed"][2]["final_error_deg"]["median"] != 0.5
+    event = after["history"][-1]
+    assert (event["action"], event["name"], event["round"], event["reason"]) == (
+        "rescored",
+        "teacher",
+        1,
+        "numerics epoch 9",
+    )
+    assert _verify(board).exit_code == 0
