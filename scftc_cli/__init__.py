@@ -4,9 +4,10 @@ Importing the package imports nothing of it. Where gymnasium is (or later gets) 
 package's environments are registered with it (``envs.register``): gymnasium 1.x loads no plugin
 entry points, so a post-import hook does it, naming the registration by its ``"module:attr"``
 (``ENVIRONMENTS``) so that the package root depends on no layer. One setting of numba is made here
-too, through a pre-import hook, before numba loads: the vector width of its compiled loops on
-AVX-512 CPUs (``WIDE_VECTORS``), a matter of speed only. Nothing here steers which kernels numpy or
-OpenBLAS load: no scored number goes through them (docs/numerics.md).
+too, through a pre-import hook, before numba loads: where its compiled kernels are cached (the
+user's cache folder, not the package's: ``kernel_cache.choose_cache_dir``) and the vector width of
+its compiled loops on AVX-512 CPUs (``WIDE_VECTORS``), a matter of speed only. Nothing here
+steers which kernels numpy or OpenBLAS load: no scored number goes through them (docs/numerics.md).
 """
 
 from __future__ import annotations
@@ -49,12 +50,16 @@ def wide_vector_features() -> str | None:
 
 
 class _BeforeNumba(importlib.abc.MetaPathFinder):
-    """Sets ``NUMBA_CPU_FEATURES`` (``wide_vector_features``) right before ``numba`` is first
-    imported (a pre-import hook), then lets the usual finders import it."""
+    """Sets ``NUMBA_CACHE_DIR`` (``kernel_cache.choose_cache_dir``) and ``NUMBA_CPU_FEATURES``
+    (``wide_vector_features``) right before ``numba`` is first imported (a pre-import hook), then
+    lets the usual finders import it."""
 
     def find_spec(self, name: str, path: object, target: ModuleType | None = None) -> None:
         if name == "numba":
             sys.meta_path.remove(self)
+            from scftc_cli.kernel_cache import choose_cache_dir
+
+            choose_cache_dir()
             features = wide_vector_features()
             if features is not None:
                 os.environ["NUMBA_CPU_FEATURES"] = features

@@ -234,14 +234,24 @@ def exits_cleanly(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @contextmanager
-def progress_bar(description: str, total: float | None = None, *, steps: bool = True) -> Iterator[Progress]:
+def progress_bar(
+    description: str, total: float | None = None, *, steps: bool = True, benchmark: str | None = None
+) -> Iterator[Progress]:
     """A rich progress bar on stderr (transient: it disappears when done); yields the ``Progress``
     the library reports to. Where stderr is not a terminal (a pipe, a log, CI) no bar is drawn;
     work that lasts longer than ten seconds writes a plain line now and then instead.
 
     Args:
         total: units of work (simulated steps unless ``steps`` is false, e.g. a training fraction).
+        benchmark: the version the work flies: where its kernels are not compiled yet, a line says
+            so first (``kernel_cache.first_run_notice``), since the bar stands still meanwhile.
     """
+    if benchmark is not None:
+        from scftc_cli.kernel_cache import first_run_notice
+
+        notice = first_run_notice(benchmark)
+        if notice is not None:
+            stderr.print(notice, highlight=False, soft_wrap=True)
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,

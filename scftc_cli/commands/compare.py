@@ -66,7 +66,7 @@ def compare_command(
         else:
             choices.append(choose_controller(spec, name=given))
     cells = select_cells(spec, split, fault_class, sensor)
-    with progress_bar(f"{a} vs {b}", 2 * planned_steps(spec, cells)) as progress:
+    with progress_bar(f"{a} vs {b}", 2 * planned_steps(spec, cells), benchmark=spec.version) as progress:
         result = compare(
             choices[0], choices[1], spec, cells, n_faults=n_faults, n_seeds=n_seeds, progress=progress
         )

@@ -39,7 +39,7 @@ def crosscheck_command(
     version = plan(benchmark).spec.version
     controllers = tuple(controller) if controller else default_controllers(version)
     steps = total_steps(episodes, controllers, version)
-    with progress_bar(f"crosscheck: {episodes} episodes", steps) as progress:
+    with progress_bar(f"crosscheck: {episodes} episodes", steps, benchmark=version) as progress:
         result = crosscheck(episodes, controllers, benchmark=version, progress=progress)
     typer.echo(json.dumps(result.dump(), indent=2))
     if not result.passed:

@@ -76,7 +76,9 @@ def eval_command(
     cells = select_cells(spec, split, fault_class, sensor)
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar(f"{choice.name} on {len(cells)} cell(s)", planned_steps(spec, cells)) as progress,
+        progress_bar(
+            f"{choice.name} on {len(cells)} cell(s)", planned_steps(spec, cells), benchmark=spec.version
+        ) as progress,
     ):
         runs = evaluate_cells(
             choice.make,

@@ -70,7 +70,7 @@ def reproduce_command(
     start = time.perf_counter()
     with (
         cluster(workers, scheduler) as runner,
-        progress_bar("reproduce", planned_steps(spec)) as progress,
+        progress_bar("reproduce", planned_steps(spec), benchmark=spec.version) as progress,
     ):
         study = run_study(spec, n_faults, n_seeds, progress=progress, runner=runner)
         progress.describe("writing tables and figures")

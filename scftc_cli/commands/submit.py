@@ -99,7 +99,7 @@ def submit_command(
     scoring = Scoring(spec, n_faults, n_seeds, limits)
     caps_notice()
     total = steps_per_entry(scoring, draws=1) + spec.steps  # the public draw and one cell again
-    with progress_bar(f"{file.name} on {spec.version}", total) as progress:
+    with progress_bar(f"{file.name} on {spec.version}", total, benchmark=spec.version) as progress:
         outcome = submit(
             file,
             board_path,
