@@ -186,8 +186,9 @@ def _sweep_temporaries(path: Path) -> None:
 
 def sweep_if_idle(path: Path) -> None:
     """Clean up after a killed writer when no writer is active (a lock that cannot be taken at
-    once means one is, and its temporary file is not stale)."""
-    if not path.parent.is_dir():
+    once means one is, and its temporary file is not stale). Only where a temporary file lies: a
+    read leaves no lock file behind (and none in a read-only package)."""
+    if not path.parent.is_dir() or not any(path.parent.glob(f".{path.name}.*.tmp")):
         return
     try:
         with FileLock(f"{path}.lock", timeout=0):

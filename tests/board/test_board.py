@@ -287,6 +287,22 @@ def test_a_crash_mid_write_loses_nothing(board: Path, monkeypatch: pytest.Monkey
     assert sorted(p.name for p in board.parent.iterdir()) == ["scftc-v1.json", "scftc-v1.json.lock"]
 
 
+def test_reading_a_board_leaves_no_lock_file(tmp_path: Path):
+    """A read takes the lock only to sweep a killed writer's temporary file: a plain read, of a
+    board or of a path where none is, leaves nothing beside it (an installed package's folder
+    stays untouched)."""
+    path = tmp_path / "leaderboard" / "scftc-v1.json"
+    update_board(path, lambda b: b.model_copy(update={"rounds": [round_one()]}))
+    (tmp_path / "leaderboard" / "scftc-v1.json.lock").unlink()
+    read_board(path)
+    result = runner.invoke(app, ["leaderboard", "--leaderboard", str(path)])
+    assert result.exit_code == 0, result.output
+    nowhere = tmp_path / "leaderboard" / "nope.json"
+    missing = runner.invoke(app, ["leaderboard", "--leaderboard", str(nowhere)])
+    assert missing.exit_code == 1
+    assert sorted(p.name for p in path.parent.iterdir()) == ["scftc-v1.json"]
+
+
 def _write_slowly_then_hang(path: str) -> None:
     """Take the lock, leave a temporary file as a writer would, and hang (to be killed -9)."""
     from filelock import FileLock
