@@ -9,7 +9,8 @@
    with every check a landing run makes.
 
 Run: ``python examples/train_ppo_and_submit.py --timesteps 200000 --out my_ppo.py`` (the default
-budget; needs the ``rl`` extra), with ``--benchmark scftc-v2`` for the reaction-wheel track. The test
+budget; needs the ``rl`` extra), with ``--benchmark scftc-v2`` (the reaction-wheel track) or
+``--benchmark scftc-v3`` (the agile mission): every version with a gymnasium environment. The test
 suite runs it with ``--timesteps 2048 --num-envs 8`` and a tiny dry run: it checks the path, not the
 policy's quality (a few minutes of PPO on this task settles nothing; see docs/rl.md).
 A submission file may be at most 1 MB (``submission/manifest.py``): about 180 000 float32
@@ -84,7 +85,12 @@ class PPOPolicy:
 '''
 
 
-ENV_IDS = {"scftc-v1": "scftc/AttitudeFTC-v1", "scftc-v2": "scftc/AttitudeFTC-v2"}
+def env_ids() -> dict[str, str]:
+    """Every registered benchmark version with a gymnasium environment, and that environment's id
+    (found through the version registry: a new version with an environment gets the route)."""
+    from scftc_cli.versions import get_version, version_names
+
+    return {name: get_version(name).envs[0].id for name in version_names() if get_version(name).envs}
 
 
 def train(timesteps: int, seed: int, num_envs: int, benchmark: str):
@@ -98,7 +104,7 @@ def train(timesteps: int, seed: int, num_envs: int, benchmark: str):
 
     import scftc_cli  # noqa: F401  (registers the scftc/AttitudeFTC environments)
 
-    vector = gym.make_vec(ENV_IDS[benchmark], num_envs=num_envs, vectorization_mode="vector_entry_point")
+    vector = gym.make_vec(env_ids()[benchmark], num_envs=num_envs, vectorization_mode="vector_entry_point")
 
     class Adapter(VecEnv):
         """gymnasium's VectorEnv (same-step autoreset) seen through sb3's VecEnv interface."""
@@ -196,7 +202,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--benchmark", choices=sorted(ENV_IDS), default="scftc-v1")
+    parser.add_argument("--benchmark", choices=sorted(env_ids()), default="scftc-v1")
     parser.add_argument("--timesteps", type=int, default=200_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--num-envs", type=int, default=64)

@@ -12,13 +12,22 @@ from pathlib import Path
 import pytest
 
 from scftc_cli.submission.manifest import load_submission
+from scftc_cli.versions import get_version, version_names
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "train_ppo_and_submit.py"
 
 
+WITH_AN_ENVIRONMENT = [name for name in version_names() if get_version(name).envs]
+
+
+def test_every_version_with_an_environment_has_the_route():
+    out = subprocess.run([sys.executable, str(EXAMPLE), "--help"], capture_output=True, text=True)
+    assert WITH_AN_ENVIRONMENT and all(name in out.stdout for name in WITH_AN_ENVIRONMENT)
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("benchmark", ["scftc-v1", "scftc-v2"])
+@pytest.mark.parametrize("benchmark", WITH_AN_ENVIRONMENT)
 def test_train_export_and_dry_run(tmp_path: Path, benchmark: str):
     pytest.importorskip("stable_baselines3")
     out = tmp_path / "tiny_ppo.py"
