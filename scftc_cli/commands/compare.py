@@ -52,7 +52,7 @@ def compare_command(
     from pathlib import Path
 
     from scftc_cli.evaluate import choose_controller, planned_steps, select_cells
-    from scftc_cli.render import markdown_table, print_table
+    from scftc_cli.render import markdown_table, print_table, terminal_width
     from scftc_cli.spec import get_spec
     from scftc_cli.study.compare import compare
     from scftc_cli.submission.local import NOTICE
@@ -105,11 +105,56 @@ def compare_command(
     if fmt == "markdown":
         typer.echo(f"**{title}**\n\n" + markdown_table(headers, rows))
         return
+    print_table(_terminal_table(result, spec.version, split, rows, terminal_width()))
+
+
+TERMINAL_HEADERS = (
+    "cell",
+    "n",
+    "A",
+    "B",
+    "only A",
+    "only B",
+    "p",
+    "p Holm",
+    "faults A/B",
+    "p fault",
+    "p f. Holm",
+)
+MCNEMAR = (6, 7)
+"""The columns a narrow terminal drops first: the McNemar test treats the episodes as independent,
+the by-fault test (kept) is the one a claim rests on (docs/statistics.md)."""
+
+
+def _terminal_table(result, version: str, split: str, rows: list[list[str]], width: int):
+    """The comparison as a rich table that fits ``width`` columns: short headers (``A`` and ``B``
+    named in the title), the faults as ``a / b``, and below about 100 columns the two McNemar
+    columns dropped (said in the caption: ``--format markdown`` or ``json`` hold every column)."""
+    from rich import box
     from rich.table import Table
 
-    table = Table(title=title)
-    for h in headers:
-        table.add_column(h, justify="left" if h == "cell" else "right")
-    for row in rows:
-        table.add_row(*row)
-    print_table(table)
+    keep = list(range(len(TERMINAL_HEADERS)))
+    narrow = width < 100
+    if narrow:
+        keep = [i for i in keep if i not in MCNEMAR]
+    caption = result.test + (
+        "; the McNemar columns are dropped at this width (--format markdown or json has every column)"
+        if narrow
+        else ""
+    )
+    table = Table(
+        title=f"A = {result.a}, B = {result.b}: settled on the same {version} {split} episodes",
+        caption=caption,
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        caption_justify="left",
+        padding=(0, 1),
+        collapse_padding=True,
+    )
+    for i in keep:
+        table.add_column(TERMINAL_HEADERS[i], justify="left" if i == 0 else "right", no_wrap=True)
+    for row, cell in zip(rows, result.cells, strict=True):
+        faults = "-" if cell.faults is None else f"{cell.a_ahead_faults} / {cell.b_ahead_faults}"
+        short = [*row[:8], faults, *row[9:]]
+        table.add_row(*(short[i] for i in keep))
+    return table
