@@ -47,3 +47,11 @@ class SubmissionRejected(ScftcError):
 
 class LeaderboardError(ScftcError):
     """The leaderboard file is corrupt, mismatched or could not be written."""
+
+
+class NoSuchSubmission(UsageError, SubmissionRejected):
+    """The path given as a submission file is not a file (a usage error: exit 2)."""
+
+
+class WrongBoard(UsageError, LeaderboardError):
+    """The board file given is another version's (a usage error: exit 2)."""

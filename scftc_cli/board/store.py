@@ -20,7 +20,7 @@ from filelock import FileLock, Timeout
 from pydantic import ValidationError
 
 from scftc_cli.board.models import Leaderboard, empty_board
-from scftc_cli.errors import LeaderboardError
+from scftc_cli.errors import LeaderboardError, WrongBoard
 
 LOCK_TIMEOUT_S = 300.0
 FIX_CORRUPT = (
@@ -138,7 +138,7 @@ def read_board(path: Path, benchmark: str, *, missing_ok: bool = False) -> Leade
             f"hand: {fix}; it was left untouched"
         ) from None
     if board.benchmark_version != benchmark:
-        raise LeaderboardError(
+        raise WrongBoard(
             f"leaderboard {path} is the {board.benchmark_version} board, not {benchmark}'s; "
             f"pass --benchmark {board.benchmark_version} or another --leaderboard"
         )

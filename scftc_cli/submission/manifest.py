@@ -21,7 +21,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from scftc_cli.errors import SubmissionRejected
+from scftc_cli.errors import NoSuchSubmission, SubmissionRejected
 from scftc_cli.spec import DEFAULT_BENCHMARK
 from scftc_cli.submission.wire import control_characters, source_encoding_problem
 from scftc_cli.submission.wire import terminal_safe as terminal_safe  # the command line's import
@@ -197,8 +197,31 @@ def format_validation_error(err: ValidationError) -> str:
     for e in err.errors():
         where = ".".join(str(p) for p in e["loc"]) or "manifest"
         msg = e["msg"].removeprefix("Value error, ")
+        if (
+            e["type"] == "string_pattern_mismatch"
+            and e["loc"]
+            and e["loc"][0] in SubmissionManifest.model_fields
+        ):
+            msg = _pattern_problem(str(e["loc"][0]), str(e["input"]))
         parts.append(f"{where}: {msg}")
     return terminal_safe("; ".join(parts))
+
+
+def _pattern_problem(field: str, value: str) -> str:
+    """What is wrong with ``value`` for a pattern-checked manifest field, in words (the regex says
+    nothing to a newcomer): the first character not allowed, or the length, then the rule."""
+    rule = SubmissionManifest.model_fields[field].description or "see docs/submitting.md"
+    shown = value if len(value) <= 40 else value[:37] + "..."
+    if field == "name":
+        bad = next(
+            (c for c in value if not (c.isascii() and (c.islower() or c.isdigit() or c in "_-"))), None
+        )
+        if bad is not None:
+            return f"`{shown}` has `{bad}`, which a name may not contain ({rule})"
+        if not 2 <= len(value) <= 40:
+            return f"`{shown}` is {len(value)} characters long ({rule})"
+        return f"`{shown}` must start with a letter ({rule})"
+    return f"`{shown}` is not allowed here ({rule})"
 
 
 def parse_manifest(source: bytes, path: Path) -> tuple[SubmissionManifest, ast.Module]:
@@ -245,8 +268,10 @@ def parse_manifest(source: bytes, path: Path) -> tuple[SubmissionManifest, ast.M
 def load_submission(path: Path) -> Submission:
     """Read, hash and statically check a submission file without executing any of it."""
     path = Path(path)
+    if path.is_dir():
+        raise NoSuchSubmission(f"{path} is a folder, not a file; pass the submission .py file in it")
     if not path.is_file():
-        raise SubmissionRejected(f"no such file: {path}; pass the path of your submission .py file")
+        raise NoSuchSubmission(f"no such file: {path}; pass the path of your submission .py file")
     if path.suffix != ".py":
         raise _reject(path, "a submission is a single .py file; rename it or point at the .py file")
     source = path.read_bytes()

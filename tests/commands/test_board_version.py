@@ -24,7 +24,7 @@ def test_a_board_copy_is_shown_as_the_version_it_holds(tmp_path: Path):
     assert "scftc-v3" in result.stdout.splitlines()[0]
     # a --benchmark that contradicts the file is still refused, naming both
     result = runner.invoke(app, ["leaderboard", "--leaderboard", str(copy), "--benchmark", "scftc-v1"])
-    assert result.exit_code != 0 and "scftc-v3" in result.stderr
+    assert result.exit_code == 2 and "scftc-v3" in result.stderr  # a usage error, like every other
 
 
 def test_the_version_is_read_only_from_a_readable_board(tmp_path: Path):
@@ -32,3 +32,13 @@ def test_the_version_is_read_only_from_a_readable_board(tmp_path: Path):
     (tmp_path / "bad.json").write_text("not json")
     assert board_version(tmp_path / "bad.json") is None
     assert board_version(ROOT / "leaderboard" / "scftc-v2.json") == "scftc-v2"
+
+
+def test_a_submission_path_that_is_no_file_is_a_usage_error(tmp_path: Path):
+    """Exit 2, one line, and what the path is: missing, or a folder."""
+    missing = runner.invoke(app, ["eval", "--controller-file", str(tmp_path / "nope.py")])
+    assert missing.exit_code == 2 and "no such file" in missing.stderr
+    folder = runner.invoke(app, ["eval", "--controller-file", str(tmp_path)])
+    assert folder.exit_code == 2 and "is a folder, not a file" in folder.stderr
+    for result in (missing, folder):
+        assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output

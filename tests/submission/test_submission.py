@@ -559,3 +559,20 @@ def test_out_of_range_commands_are_clipped_on_every_path(tmp_path: Path, board: 
     result = submit(loud, board, dry_run=False)  # the landing run: whole-cell determinism check included
     assert result.exit_code == 0, result.output
     assert "added `loud`" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("name", "said"),
+    [
+        ("café", "`café` has `é`, which a name may not contain"),
+        ("a" * 50, "is 50 characters long"),
+        ("9abc", "must start with a letter"),
+        ("Probe", "has `P`"),
+    ],
+)
+def test_a_bad_name_is_explained_in_words_not_a_regex(tmp_path: Path, name: str, said: str):
+    path = write_submission(tmp_path, manifest=MANIFEST.format(name=name), name="file")
+    with pytest.raises(SubmissionRejected) as err:
+        load_submission(path)
+    assert said in str(err.value) and "2-40 chars" in str(err.value)
+    assert "[a-z]" not in str(err.value)  # no regex
