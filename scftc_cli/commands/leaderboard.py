@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -31,6 +32,9 @@ from scftc_cli.commands.common import (
 )
 from scftc_cli.errors import UsageError
 from scftc_cli.submission.limits import SandboxLimits
+
+if TYPE_CHECKING:
+    from scftc_cli.board.models import Leaderboard
 
 
 class BoardFormat(StrEnum):
@@ -170,6 +174,22 @@ def _report_entry(name: str, seconds: float, error: str | None) -> None:
         stderr.print(f"scored {escape(name)} ({seconds:.1f} s)", highlight=False)
     else:
         stderr.print(f"[red]failed {escape(name)}:[/red] {escape(error)}", highlight=False, soft_wrap=True)
+
+
+def _say_ranks(board: Leaderboard, names: Sequence[str]) -> None:
+    """One line per entry just sealed: its rank on the board (tie group) and sealed settled rate,
+    or that it is an oracle (never ranked)."""
+    from scftc_cli.board.ranking import rank_board
+
+    ranking = rank_board(board)
+    rows = {r.entry.name: r for r in [*ranking.deployable, *ranking.upper_bounds]}
+    for name in names:
+        row = rows.get(name)
+        if row is None:
+            continue
+        ranked = row.rank is not None
+        where = f"rank {row.rank} of {len(ranking.deployable)}" if ranked else "an oracle, not ranked"
+        typer.echo(f"{name}: {where}, sealed settled {100 * row.sealed.rate:.1f} % (pooled ranked classes)")
 
 
 def _says_where(board_path: Path, board_version: int, what: str) -> None:
@@ -396,6 +416,7 @@ def seal_command(
         f"sealed round {report.round}: {len(report.sealed)} entries sealed, {len(report.failed)} failed; "
         f"round {report.board.rounds[-1].number} is open",
     )
+    _say_ranks(report.board, report.sealed)
 
 
 @leaderboard_app.command("land")
@@ -525,6 +546,7 @@ def rebuild_command(
             s.board.version,
             f"sealed round {s.round} with {len(s.sealed)} entries ({len(s.failed)} failed)",
         )
+        _say_ranks(s.board, s.sealed)
     if report.failed:
         raise LeaderboardError(
             f"could not score {', '.join(report.failed)} (left off the board); fix them and run "

@@ -133,6 +133,7 @@ def sealed_round(tmp_path_factory: pytest.TempPathFactory, key_path: Path) -> Pa
     result = _invoke("leaderboard", "seal", "--leaderboard", board, "--key-file", key_path)
     assert result.exit_code == 0, result.output
     assert "1 entries sealed, 1 failed" in result.stdout
+    assert "pd_plus: rank 1 of 1, sealed settled " in result.stdout  # the seal says where it ranks
     return board
 
 
