@@ -7,7 +7,7 @@ builds a fresh instance, a sandboxed submission hands back its proxy.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -65,11 +65,24 @@ class StackInspector(Protocol):
     def take(self, cell: Cell, readings: list[Any]) -> None: ...
 
 
-def select_cells(spec: BenchmarkSpec, split: str, fault_class: str | None, sensor: str | None) -> list[Cell]:
+def select_cells(
+    spec: BenchmarkSpec, split: str, fault_class: str | Sequence[str] | None, sensor: str | None
+) -> list[Cell]:
     """Expand ``all`` into cells. Sensor faults sit on the base class (``sign``); ``fault_class``
-    ``None`` means every actuator class without a sensor fault, and the base class with one."""
+    ``None`` means every actuator class without a sensor fault, and the base class with one.
+    Several classes (``--class`` repeated) give their cells in the order given, each once."""
     if split not in spec.splits:
         raise UnknownNameError("split", split, spec.splits)
+    if fault_class is not None and not isinstance(fault_class, str):
+        chosen = list(dict.fromkeys(fault_class))
+        if len(chosen) > 1:
+            if sensor is not None:
+                raise UsageError("sensor faults sit on one base class; give --class once with --sensor")
+            cells: list[Cell] = []
+            for one in chosen:
+                cells += [c for c in select_cells(spec, split, one, None) if c not in cells]
+            return cells
+        fault_class = chosen[0] if chosen else None
     if sensor is not None:
         if fault_class not in (None, spec.sensor_base_class):
             raise UsageError(

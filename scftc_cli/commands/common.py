@@ -129,11 +129,11 @@ class CellsOptions:
     """The options that choose cells, shared by ``eval`` and ``compare``."""
 
     fault_class = Annotated[
-        str | None,
+        list[str] | None,
         typer.Option(
             "--class",
-            help="Actuator fault class (`scftc list`) or all [default: all; the sensor faults' base class "
-            "with --sensor].",
+            help="Actuator fault class (`scftc list`) or all, repeatable for several [default: all; the "
+            "sensor faults' base class with --sensor].",
             show_default=False,
         ),
     ]

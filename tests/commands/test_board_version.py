@@ -42,3 +42,15 @@ def test_a_submission_path_that_is_no_file_is_a_usage_error(tmp_path: Path):
     assert folder.exit_code == 2 and "is a folder, not a file" in folder.stderr
     for result in (missing, folder):
         assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
+
+
+def test_a_repeated_class_flies_each_class_once_in_order():
+    """Repeating --class used to keep only the last one, silently."""
+    import json
+
+    args = ["eval", "--controller", "pd", "--n-faults", "1", "--n-seeds", "1", "--format", "json"]
+    result = runner.invoke(app, [*args, "--class", "gain", "--class", "sign", "--class", "gain"])
+    assert result.exit_code == 0, result.output
+    assert [c["class"] for c in json.loads(result.stdout)["cells"]] == ["gain", "sign"]
+    both = runner.invoke(app, [*args, "--class", "gain", "--class", "sign", "--sensor", "all"])
+    assert both.exit_code == 2 and "give --class once with --sensor" in both.stderr
