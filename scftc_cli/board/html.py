@@ -736,21 +736,38 @@ def board_section(board: Leaderboard) -> str:
     ]
     shown = [(key, title, body) for key, title, body in parts if body]
     toc = "".join(f'<a href="#{version}-{key}">{key}</a>' for key, _, _ in shown)
+    sections = [
+        f'<section class="part" id="{version}-{key}"><h3>{esc(title)}</h3>{body}</section>'
+        for key, title, body in shown
+    ]
+    # the ranking first; what the numbers are and the rule folded just below it
+    reading = (
+        '<details class="reading"><summary>What the numbers are, and how entries rank</summary>'
+        + _intro(board, spec, ranking.rule)
+        + "</details>"
+    )
     return (
         f'<section class="board" id="{version}"><h2>{version} &middot; board version {board.version}</h2>'
-        + _intro(board, spec, ranking.rule)
         + f'<p class="toc">{toc}</p>'
-        + "".join(
-            f'<section class="part" id="{version}-{key}"><h3>{esc(title)}</h3>{body}</section>'
-            for key, title, body in shown
-        )
+        + "".join(sections[:1])
+        + reading
+        + "".join(sections[1:])
         + "</section>"
     )
 
 
 def board_html(boards: list[Leaderboard]) -> str:
     """One self-contained page holding every board of ``boards`` (one section per version)."""
-    nav = "".join(f'<a href="#{esc(b.benchmark_version)}">{esc(b.benchmark_version)}</a>' for b in boards)
+    from scftc_cli.versions import published_names
+
+    here = [b.benchmark_version for b in boards]
+    # every published version: those on this page by anchor, the others on the all-versions page
+    nav = "".join(
+        f'<a href="#{esc(v)}">{esc(v)}</a>'
+        if v in here
+        else f'<a href="index.html#{esc(v)}" title="on the page of every version">{esc(v)}</a>'
+        for v in [*here, *(v for v in published_names() if v not in here)]
+    )
     sections = "".join(board_section(b) for b in boards)
     return (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"

@@ -232,7 +232,10 @@ def test_the_flag_history_and_rounds_read_as_on_the_markdown_board():
 
 def test_an_open_round_without_entries_says_so():
     text = text_of(committed_page())
-    assert text.count("Round 2 is open and holds no entry yet.") == 2
+    for version in published_names():
+        board = read_board(default_board_path(version), version)
+        assert board.open_round is not None and not any(e.status == "pending" for e in board.entries)
+        assert f"Round {board.open_round.number} is open and holds no entry yet." in text
 
 
 # ----------------------------------------------------------------------------------- in a browser
@@ -424,3 +427,15 @@ def test_pending_failed_flagged_sensors_rounds_history_and_details(driver: WebDr
     details = driver.find_element(By.CSS_SELECTOR, 'tbody:has(tr[data-name="learner"]) tr.details')
     assert "seed 3; 2 seeds tried" in details.text and "built-in" in details.text
     assert len(details.find_elements(By.CSS_SELECTOR, "svg polyline.series")) == len(V1.fault_classes) + 1
+
+
+def test_a_one_version_page_links_every_version_and_puts_the_ranking_first():
+    """A page of one board still links the other versions (on the page of every version), and its
+    ranking comes before the explanation, which is folded."""
+    version = published_names()[-1]
+    page = board_html([read_board(default_board_path(version), version)])
+    for other in published_names():
+        if other != version:
+            assert f'href="index.html#{other}"' in page
+    assert page.index(f'id="{version}-deployable"') < page.index('<details class="reading">')
+    assert "<summary>What the numbers are, and how entries rank</summary>" in page
