@@ -425,6 +425,78 @@ def log1p(x):  # pragma: no cover - compiled
     return ah + al
 
 
+# --- short forms: the project's own, in plain float64, not correctly rounded --------------------
+#
+# Where a kernel calls a trigonometric function per candidate inside a hot loop, the double-double
+# forms above cost too much (about 200 ns a call). These evaluate a fixed Taylor polynomial by
+# Horner's rule in float64, in the order written: the same bits on every IEEE machine, within a few
+# ulp of the exact value (checked against mpmath in tests/sim/test_elementary.py), and no library.
+
+
+def _taylor(kind: str, terms: int) -> np.ndarray:
+    """Coefficients, highest power first, in float64: ``asin`` (odd powers ``t^(2k+1)``: ``(2k)! /
+    (4^k (k!)^2 (2k+1))``) or ``cos`` (even powers: ``(-1)^k / (2k)!``)."""
+    from fractions import Fraction
+
+    if kind == "asin":
+        c = [
+            Fraction(math.factorial(2 * k), 4**k * math.factorial(k) ** 2 * (2 * k + 1)) for k in range(terms)
+        ]
+    else:
+        c = [Fraction((-1) ** k, math.factorial(2 * k)) for k in range(terms)]
+    return np.array([float(v) for v in reversed(c)])
+
+
+_ASIN_SHORT = _taylor("asin", 28)
+"""``asin t`` on ``|t| <= 1/2``: 28 terms, the first omitted below ``2^-60`` there."""
+_COS_SHORT = _taylor("cos", 12)
+"""``cos x`` on ``|x| <= pi/2``: 12 terms (to ``x^22``), the first omitted below ``2^-62`` there."""
+_HALF_PI = math.pi / 2.0
+
+
+@numba.njit(inline="always")
+def _asin_short(t):  # pragma: no cover - compiled
+    """``asin t`` for ``|t| <= 1/2``: ``t (c0 + t^2 (c1 + ...))`` by Horner in ``t^2``."""
+    u = t * t
+    acc = _ASIN_SHORT[0]
+    for k in range(1, _ASIN_SHORT.shape[0]):
+        acc = acc * u + _ASIN_SHORT[k]
+    return t * acc
+
+
+@numba.njit(inline="always")
+def acos_short(x):  # pragma: no cover - compiled
+    """``acos x`` for ``x`` in [-1, 1] (the short form): ``pi/2 - asin x`` for ``|x| <= 1/2``, else
+    ``2 asin(sqrt((1 - x) / 2))`` or ``pi - 2 asin(sqrt((1 + x) / 2))``."""
+    if abs(x) <= 0.5:
+        return _HALF_PI - _asin_short(x)
+    if x > 0.0:
+        return 2.0 * _asin_short(math.sqrt((1.0 - x) / 2.0))
+    return math.pi - 2.0 * _asin_short(math.sqrt((1.0 + x) / 2.0))
+
+
+@numba.njit(inline="always")
+def cos_short(x):  # pragma: no cover - compiled
+    """``cos x`` for ``x`` in [0, pi] (the short form): the Taylor polynomial in ``x^2`` on [0, pi/2],
+    ``-cos(pi - x)`` above."""
+    sign = 1.0
+    if x > _HALF_PI:
+        x, sign = math.pi - x, -1.0
+    u = x * x
+    acc = _COS_SHORT[0]
+    for k in range(1, _COS_SHORT.shape[0]):
+        acc = acc * u + _COS_SHORT[k]
+    return sign * acc
+
+
+@numba.njit(cache=True)
+def short_rows(x, out_acos, out_cos):  # pragma: no cover - compiled
+    """``acos_short`` of ``x`` in [-1, 1] and ``cos_short`` of ``(x + 1) pi / 2`` (for the tests)."""
+    for i in range(x.shape[0]):
+        out_acos[i] = acos_short(x[i])
+        out_cos[i] = cos_short((x[i] + 1.0) * _HALF_PI)
+
+
 @numba.njit(cache=True, parallel=True)
 def _unary_rows(which, x, out):  # pragma: no cover - compiled
     for i in numba.prange(x.size):

@@ -42,6 +42,7 @@ import numpy as np
 
 from scftc_cli.baselines.params import Tuned
 from scftc_cli.protocol import Context
+from scftc_cli.sim.elementary import acos_short, cos_short
 from scftc_cli.sim.products import split_matvec3, sum_rows
 from scftc_cli.sim.rows import CHUNK_ROWS, HEAVY_PARALLEL_MIN_BATCH, run_rows
 from scftc_cli.versions.v2.controllers.adaptive import predicted_torque, sample_weight
@@ -86,7 +87,8 @@ class ICLParams:
 def _eig_extremes(
     m11: float, m12: float, m13: float, m22: float, m23: float, m33: float
 ) -> tuple[float, float]:
-    """``(lambda_min, lambda_max)`` of a symmetric 3x3 matrix (the trigonometric closed form)."""
+    """``(lambda_min, lambda_max)`` of a symmetric 3x3 matrix (the trigonometric closed form, with
+    the project's short ``acos`` and ``cos``: ``sim/elementary.acos_short``, ``cos_short``)."""
     q = (m11 + m22 + m33) / 3.0
     p1 = m12 * m12 + m13 * m13 + m23 * m23
     p2 = (m11 - q) ** 2 + (m22 - q) ** 2 + (m33 - q) ** 2 + 2.0 * p1
@@ -97,9 +99,9 @@ def _eig_extremes(
     b12, b13, b23 = m12 / p, m13 / p, m23 / p
     r = 0.5 * (b11 * (b22 * b33 - b23 * b23) - b12 * (b12 * b33 - b23 * b13) + b13 * (b12 * b23 - b22 * b13))
     r = min(max(r, -1.0), 1.0)
-    phi = math.acos(r) / 3.0
-    largest = q + 2.0 * p * math.cos(phi)
-    smallest = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    phi = acos_short(r) / 3.0
+    largest = q + 2.0 * p * cos_short(phi)
+    smallest = q + 2.0 * p * cos_short(phi + 2.0 * math.pi / 3.0)
     return smallest, largest
 
 
@@ -142,8 +144,8 @@ def _score_finish(q, p, r, degenerate, tie):  # pragma: no cover - compiled
     if degenerate:
         smallest = q
     else:
-        phi = math.acos(r) / 3.0
-        smallest = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+        phi = acos_short(r) / 3.0
+        smallest = q + 2.0 * p * cos_short(phi + 2.0 * math.pi / 3.0)
     return max(smallest, 0.0) + FRICTION_TIE * tie
 
 
