@@ -1,4 +1,4 @@
-"""Rendering of the leaderboard as markdown, JSON and CSV (plain text)."""
+"""Rendering of the leaderboard as markdown, JSON and CSV (plain text), and for a terminal (rich)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import csv
 import dataclasses
 import io
 import json
+from typing import Any
 
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
 from scftc_cli.board.ranking import (
@@ -388,6 +389,76 @@ def board_csv(board: Leaderboard) -> str:
                     + ([r.over_budget] if diagnosed else [])
                 )
     return buf.getvalue()
+
+
+def board_terminal(board: Leaderboard, width: int) -> list[Any]:
+    """The board for a terminal of ``width`` columns, as rich renderables: the ranking (rank,
+    controller, kind, the pooled sealed rate with its by-fault interval, the public rate, the flag)
+    and the oracles apart, each line fitting the width; the per-class rates, the diagnosis, the
+    rounds and the history are the markdown and HTML forms' (said below the tables). Below about
+    100 columns the public column and the kind are dropped (said in the caption)."""
+    from rich import box
+    from rich.table import Table
+    from rich.text import Text
+
+    ranking = rank_board(board)
+    narrow = width < 100
+    title = (
+        f"{board.benchmark_version} board (version {board.version}): sealed settled %, pooled over "
+        f"{len(ranking.ranked_classes)} ranked classes, by-fault 95 % interval in braces"
+    )
+    dropped = "; the kind and public columns are dropped at this width" if narrow else ""
+    out: list[Any] = []
+
+    def table(rows: list[Ranked], oracle: bool) -> Table:
+        t = Table(
+            title=title if not oracle else "Upper bounds (privileged oracles, never ranked)",
+            box=box.SIMPLE_HEAD,
+            pad_edge=False,
+            padding=(0, 1),
+            collapse_padding=True,
+            title_justify="left",
+        )
+        if not oracle:
+            t.add_column("rank", justify="right", no_wrap=True)
+        t.add_column("controller", no_wrap=True)
+        if not narrow and not oracle:
+            t.add_column("kind", no_wrap=True)
+        t.add_column("sealed {by fault}", justify="right", no_wrap=True)
+        if not narrow:
+            t.add_column("public", justify="right", no_wrap=True)
+        if not oracle:
+            t.add_column("flag", overflow="fold")
+        for r in rows:
+            low, high = r.sealed.interval_by_fault
+            cells = [rank_text(r)] if not oracle else []
+            cells.append(r.entry.name)
+            if not narrow and not oracle:
+                cells.append(kind_text(r.entry))
+            cells.append(f"{100 * r.sealed.rate:.1f} {{{100 * low:.1f}, {100 * high:.1f}}}")
+            if not narrow:
+                cells.append(f"{100 * r.public.rate:.1f}")
+            if not oracle:
+                flag = "over the false-alarm budget" if r.over_budget else ""
+                cells.append(flag or ("public > sealed" if r.flagged else ""))
+            t.add_row(*cells)
+        return t
+
+    if ranking.deployable:
+        out.append(table(ranking.deployable, oracle=False))
+    else:
+        out.append(Text("No sealed entry yet."))
+    if ranking.upper_bounds:
+        out.append(table(ranking.upper_bounds, oracle=True))
+    counts = f"{len(ranking.pending)} pending, {len(ranking.failed)} failed at sealing"
+    out.append(
+        Text(
+            f"{counts}. Per-class rates, Wilson intervals, the diagnosis, rounds and history: "
+            f"--format markdown (or html){dropped}.",
+            style="dim",
+        )
+    )
+    return out
 
 
 def render_board(board: Leaderboard, output_format: str) -> str:

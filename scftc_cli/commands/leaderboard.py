@@ -7,6 +7,7 @@ exactly as if given after it; given in both places with different values, the co
 from __future__ import annotations
 
 import json
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -38,6 +39,7 @@ if TYPE_CHECKING:
 
 
 class BoardFormat(StrEnum):
+    terminal = "terminal"
     markdown = "markdown"
     json = "json"
     csv = "csv"
@@ -102,8 +104,14 @@ def board_version(path: Path | None) -> str | None:
 def show_command(
     ctx: typer.Context,
     output_format: Annotated[
-        BoardFormat, typer.Option("--format", help="Output format.")
-    ] = BoardFormat.markdown,
+        BoardFormat | None,
+        typer.Option(
+            "--format",
+            help="Output format [default: terminal (tables that fit the window) when stdout is a "
+            "terminal, else markdown].",
+            show_default=False,
+        ),
+    ] = None,
     leaderboard: BoardOption = None,
     benchmark: BenchmarkOption = DEFAULT,
     out: Annotated[
@@ -131,7 +139,25 @@ def show_command(
         check_output(out, "--out")
     if leaderboard is not None and not _explicit(ctx, "benchmark"):
         benchmark = board_version(leaderboard) or benchmark
+    if output_format is None:
+        output_format = BoardFormat.terminal if out is None and sys.stdout.isatty() else BoardFormat.markdown
     fmt = BoardFormat(output_format).value
+    if fmt == "terminal":
+        if out is not None:
+            raise UsageError("--format terminal prints to the terminal; write a file with --format markdown")
+        from rich.console import Console
+
+        from scftc_cli.board.render import board_terminal
+        from scftc_cli.render import terminal_width
+
+        path = leaderboard or default_board_path(benchmark)
+        if leaderboard is None:
+            note_line(f"board: {where(path)}")
+        width = terminal_width()
+        console = Console(width=width, soft_wrap=False)
+        for part in board_terminal(read_board(path, benchmark), width):
+            console.print(part)
+        return
     if fmt == "html":
         from scftc_cli.board.html import board_html
         from scftc_cli.versions import version_names

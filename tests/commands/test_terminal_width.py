@@ -41,3 +41,25 @@ def test_compare_shows_every_column_at_120():
     out = _compare(120)
     assert max(len(line) for line in out.splitlines()) <= 120
     assert "…" not in out and "p Holm" in out and "dropped" not in out
+
+
+def _board(columns: int) -> str:
+    args = ["leaderboard", "--benchmark", "scftc-v3", "--format", "terminal"]
+    result = runner.invoke(app, args, env={"COLUMNS": str(columns)})
+    assert result.exit_code == 0, result.output
+    return result.stdout
+
+
+def test_the_board_fits_the_terminal_and_says_where_the_rest_is():
+    for columns in (80, 120):
+        out = _board(columns)
+        assert max(len(line) for line in out.splitlines()) <= columns
+        assert "rls_dob" in out and "mission_pi" in out and "oracle" in out and "…" not in out
+        assert "--format markdown" in out
+    assert "public columns are dropped at this width" in " ".join(_board(80).split())
+    assert "submission 1.0.0" in _board(120)
+
+
+def test_the_markdown_board_is_what_a_pipe_gets():
+    result = runner.invoke(app, ["leaderboard", "--benchmark", "scftc-v3"])  # not a terminal
+    assert result.exit_code == 0 and result.stdout.startswith("# SCFTC leaderboard")
