@@ -184,6 +184,13 @@ def show_command(
         stderr.print(f"wrote {out}", highlight=False)
 
 
+SubmissionsOption = Annotated[
+    Path | None,
+    typer.Option(
+        help="Folder of submitted files [default: ../submissions from the board].", show_default=False
+    ),
+]
+
 KeyFileOption = Annotated[
     Path | None,
     typer.Option(
@@ -228,12 +235,7 @@ def verify_command(
     ctx: typer.Context,
     leaderboard: BoardOption = None,
     benchmark: SubBenchmarkOption = None,
-    submissions: Annotated[
-        Path | None,
-        typer.Option(
-            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
-        ),
-    ] = None,
+    submissions: SubmissionsOption = None,
     base: Annotated[
         Path | None,
         typer.Option(
@@ -395,12 +397,7 @@ def seal_command(
             help="Open the next round under this key instead (rotating the key).", show_default=False
         ),
     ] = None,
-    submissions: Annotated[
-        Path | None,
-        typer.Option(
-            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
-        ),
-    ] = None,
+    submissions: SubmissionsOption = None,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
@@ -588,12 +585,7 @@ def rescore_command(
     reason: Annotated[str, typer.Option(help="Why (kept in the board's history): the numerics epoch.")],
     leaderboard: BoardOption = None,
     benchmark: SubBenchmarkOption = None,
-    submissions: Annotated[
-        Path | None,
-        typer.Option(
-            help="Folder of submitted files [default: ../submissions from the board].", show_default=False
-        ),
-    ] = None,
+    submissions: SubmissionsOption = None,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
