@@ -4,9 +4,11 @@ numba compiles every kernel the first time a process calls it and, with ``cache=
 machine code on disk so that the next process loads it in milliseconds. By default numba writes
 that cache beside the source files (``__pycache__`` in the package): inside an installed package,
 site-packages. The package points numba at the user's cache folder instead,
-``$XDG_CACHE_HOME/scftc/numba`` (``~/.cache/scftc/numba``), where the user's other caches live
-(``choose_cache_dir``, called before numba is imported; a ``NUMBA_CACHE_DIR`` the user set is kept,
-and a folder that cannot be written leaves numba's default).
+``$XDG_CACHE_HOME/scftc/numba/<source stamp>`` (under ``~/.cache``), where the user's other caches
+live, one folder per state of the package's sources (``source_stamp``: numba alone would reuse
+stale machine code across modules) (``choose_cache_dir``, called before numba is imported; a
+``NUMBA_CACHE_DIR`` the user set is kept, and a folder that cannot be written leaves numba's
+default). Folders of older states can be deleted at any time.
 
 The first evaluation of a version on a machine compiles its kernels: about a minute on a laptop,
 during which no episode advances. ``first_run_notice`` says so on screen before it starts.
@@ -21,9 +23,27 @@ ENV = "NUMBA_CACHE_DIR"
 
 
 def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/scftc/numba``, or ``~/.cache/scftc/numba``."""
+    """``$XDG_CACHE_HOME/scftc/numba/<source stamp>``, or under ``~/.cache`` (``source_stamp``)."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "scftc" / "numba"
+    return Path(base) / "scftc" / "numba" / source_stamp()
+
+
+def source_stamp() -> str:
+    """16 hex digits of the sha256 of every package source file's path, size and modification time.
+
+    numba keys a cached kernel to its own file only: a kernel that calls (and so compiles in) a
+    function of another module keeps the old machine code when only that other module changes.
+    Measured here: after the ziggurat's tail changed in ``sim/pcg64.py``, the v3 sensors' cached
+    kernels (``versions/v3/sim/sensors.py``, unchanged) still drew with the old tail. A cache folder
+    per state of the whole package rules that out: any change to any module starts a fresh one."""
+    import hashlib
+
+    package = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(package.rglob("*.py")):
+        stat = path.stat()
+        digest.update(f"{path.relative_to(package)}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+    return digest.hexdigest()[:16]
 
 
 def choose_cache_dir() -> None:
@@ -40,29 +60,25 @@ def choose_cache_dir() -> None:
         os.environ[ENV] = str(folder)
 
 
-def version_sources(version: str) -> list[Path]:
-    """The Python files of ``version``'s folder and of the shared ``sim/`` package: the files whose
-    kernels a first evaluation compiles."""
-    from scftc_cli.versions import VERSIONS
-
+def version_sources(folder: Path) -> list[Path]:
+    """The Python files of a version's ``folder`` and of the shared ``sim/`` package: the files
+    whose kernels a first evaluation of that version compiles."""
     package = Path(__file__).resolve().parent
-    module = VERSIONS[version].split(":")[0]
-    folder = package.joinpath(*module.split(".")[1:])
-    return sorted([*folder.rglob("*.py"), *(package / "sim").glob("*.py")])
+    return sorted([*Path(folder).rglob("*.py"), *(package / "sim").glob("*.py")])
 
 
-def needs_compiling(version: str) -> bool:
-    """Whether no compiled kernel of ``version`` is cached yet (no numba index file for any of its
-    source folders, where numba would look for one)."""
+def needs_compiling(folder: Path) -> bool:
+    """Whether no compiled kernel of the version in ``folder`` is cached yet (no numba index file
+    for any of its source folders, where numba would look for one)."""
     from numba.core.caching import _CacheLocator
 
     cache = _cache_dir()
-    folders = {p.parent for p in version_sources(version)}
-    for folder in folders:
+    folders = {p.parent for p in version_sources(folder)}
+    for source in folders:
         if cache:
-            where = Path(cache) / _CacheLocator.get_suitable_cache_subpath(str(folder / "x.py"))
+            where = Path(cache) / _CacheLocator.get_suitable_cache_subpath(str(source / "x.py"))
         else:
-            where = folder / "__pycache__"
+            where = source / "__pycache__"
         if where.is_dir() and any(where.glob("*.nbi")):
             return False
     return True
@@ -75,13 +91,13 @@ def _cache_dir() -> str:
     return str(getattr(config, "CACHE_DIR", "") or "")
 
 
-def first_run_notice(version: str) -> str | None:
-    """The line to show before a first evaluation of ``version`` on this machine (``None`` when its
-    kernels are cached)."""
+def first_run_notice(version: str, folder: Path) -> str | None:
+    """The line to show before a first evaluation of ``version`` (its folder ``folder``) on this
+    machine (``None`` when its kernels are cached)."""
     try:
-        if not needs_compiling(version):
+        if not needs_compiling(folder):
             return None
-    except (ImportError, KeyError, OSError):
+    except (ImportError, OSError):
         return None
     where = _cache_dir() or "beside the package's modules"
     return (

@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 PACKAGE = Path(__file__).resolve().parents[1] / "scftc_cli"
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "loading"),
+    ("errors", "loading", "kernel_cache"),
     ("spec", "protocol", "versions"),
     ("sim",),
     ("baselines", "registry", "controllers", "submission"),

@@ -248,8 +248,9 @@ def progress_bar(
     """
     if benchmark is not None:
         from scftc_cli.kernel_cache import first_run_notice
+        from scftc_cli.versions import version_folder
 
-        notice = first_run_notice(benchmark)
+        notice = first_run_notice(benchmark, version_folder(benchmark))
         if notice is not None:
             stderr.print(notice, highlight=False, soft_wrap=True)
     from rich.progress import (

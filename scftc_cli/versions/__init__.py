@@ -229,6 +229,17 @@ def benchmark_option(name: str) -> str:
     return "" if name == default_version() else f"--benchmark {name} "
 
 
+def version_folder(name: str) -> Path:
+    """The folder of version ``name`` (``scftc_cli/versions/<name>/``), found without importing it."""
+    import importlib.util
+
+    if name not in VERSIONS:
+        raise UnknownNameError("benchmark version", name, VERSIONS)
+    spec = importlib.util.find_spec(VERSIONS[name].split(":")[0])
+    assert spec is not None and spec.origin is not None  # a registered version is a package
+    return Path(spec.origin).parent
+
+
 def get_version(name: str) -> Version:
     """The ``Version`` of ``name`` (imported on first use); an unknown name suggests the closest."""
     if name not in VERSIONS:

@@ -16,7 +16,7 @@ from scftc_cli.board.models import Leaderboard
 from scftc_cli.board.verify import extends_problems, history_problems
 
 ROOT = Path(__file__).resolve().parents[2]
-COMMITTED = ROOT / "leaderboard" / "scftc-v2.json"
+COMMITTED = ROOT / "leaderboard" / "scftc-v1.json"  # v1 never changes: its rounds stay as written here
 
 
 def _board() -> Leaderboard:
@@ -42,9 +42,9 @@ def test_the_committed_boards_history_is_borne_out_by_its_state():
     [
         (
             "removed",
-            "fdir",
+            "rma_dob",
             None,
-            "the history says fdir was removed ('cheating'), but it is sealed in round 1",
+            "the history says rma_dob was removed ('cheating'), but it is sealed in round 1",
         ),
         ("failed", "rls_dob", 1, "the history says rls_dob failed in round 1, but it is sealed in round 1"),
         (

@@ -96,7 +96,7 @@ def test_the_study_of_the_toy_writes_its_tables_and_figures(toy: str, tmp_path: 
 def test_compare_takes_a_submission_of_the_toy(toy: str, tmp_path: Path) -> None:
     source = tmp_path / "toy_probe.py"
     source.write_text(SUBMISSION_SOURCE)
-    assert "toy_probe vs teacher" in _ok("compare", str(source), "teacher", "--benchmark", toy)
+    assert "A = toy_probe, B = teacher" in _ok("compare", str(source), "teacher", "--benchmark", toy)
 
 
 @pytest.fixture
