@@ -135,6 +135,11 @@ class AgileSplit(WheelSplit):
     mag_bias_t: IntervalSet
     outage_duration_s: IntervalSet
 
+    def for_class(self, name: str) -> AgileSplit:
+        """The ranges fault class ``name`` draws from: these (a later version's split may give a
+        class its own, e.g. ``scftc-v4``'s ``double`` its stored momentum)."""
+        return self
+
 
 class AgileFaultClass(FaultClass):
     """A ``scftc-v3`` actuator fault class: v2's flags plus the new kinds.

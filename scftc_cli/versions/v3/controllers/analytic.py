@@ -148,7 +148,7 @@ class Teacher(MissionLaw):
 
     def wheel_model(self, tach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         gain, offset, friction = super().wheel_model(tach)
-        return np.where(self.active(), self.fault.gain, 1.0), offset, friction
+        return self.fault.gain_at(self.k), offset, friction
 
     def rod_gain(self) -> np.ndarray:
         return np.where(self.active(), self.fault.rod_gain, 1.0)
@@ -193,11 +193,10 @@ class Oracle(Teacher):
     def wheel_model(self, tach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         f, k = self.fault, self.k
         active = self.active()
-        gain = np.where(active, f.gain, 1.0)
+        gain = f.gain_at(k)
         offset = np.where(active, f.bias, 0.0)
         ramp = 1.0 + self.ramp_rate * (k - self.onset)[:, None]
-        in_burst = np.any((np.asarray(f.burst_start_step) <= k) & (k < np.asarray(f.burst_end_step)), axis=1)
-        burst = np.where(in_burst[:, None], f.burst_multiplier, 1.0)
+        burst = np.where(f.in_burst(k), f.burst_multiplier, 1.0)
         coulomb = self.wheels.coulomb_nm * np.where(active, (f.friction_multiplier * ramp) * burst, 1.0)
         return gain, offset, friction_nm(tach, coulomb, self.wheels)
 

@@ -122,6 +122,15 @@ class PlantFault:
             pad with empty bursts (``start == end``). They only act from the onset on.
         rod_gain: ``(n, 3)`` each rod's gain (1 healthy, -1 reversed, 0 dead, 0.5 half dipole).
         onset_step: ``(n,)`` int, the first faulted step.
+        gain_creep_per_step: ``(n, m)`` how fast a wheel's effectiveness creeps down: over step
+            ``k`` its gain is ``gain max(1 + rate (k - onset), floor)`` (``scftc-v4``'s
+            ``incipient``; 0: none, v3's faults).
+        gain_creep_floor: ``(n, m)`` where the creep stops (0: at failure; v3's faults: 0).
+        burst_gain: ``(n, m)`` a wheel's gain factor during a burst (0: the wheel drops out;
+            ``scftc-v4``'s ``intermittent``; 1: none, v3's faults).
+
+    A wheel's gain over step ``k`` from the onset on is ``gain (creep(k) flicker(k))``
+    (``gain_at``); with v3's faults both factors are exactly 1, so v3's numbers keep their bits.
     """
 
     gain: np.ndarray
@@ -133,14 +142,24 @@ class PlantFault:
     burst_end_step: np.ndarray
     rod_gain: np.ndarray
     onset_step: np.ndarray
+    gain_creep_per_step: np.ndarray | None = None
+    gain_creep_floor: np.ndarray | None = None
+    burst_gain: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n, m = np.shape(self.gain)
+        if self.gain_creep_per_step is None:
+            object.__setattr__(self, "gain_creep_per_step", np.zeros((n, m)))
+        if self.gain_creep_floor is None:
+            object.__setattr__(self, "gain_creep_floor", np.zeros((n, m)))
+        if self.burst_gain is None:
+            object.__setattr__(self, "burst_gain", np.ones((n, m)))
         b = np.shape(self.burst_start_step)[1] if np.ndim(self.burst_start_step) == 2 else -1
         shapes = {
             "gain": (n, m), "bias": (n, m), "friction_multiplier": (n, m), "friction_ramp_end": (n, m),
             "burst_multiplier": (n, m), "burst_start_step": (n, b), "burst_end_step": (n, b),
-            "rod_gain": (n, N_RODS), "onset_step": (n,),
+            "rod_gain": (n, N_RODS), "onset_step": (n,), "gain_creep_per_step": (n, m),
+            "gain_creep_floor": (n, m), "burst_gain": (n, m),
         }  # fmt: skip
         for name, shape in shapes.items():
             dtype = np.int64 if name in ("burst_start_step", "burst_end_step", "onset_step") else np.float64
@@ -155,6 +174,22 @@ class PlantFault:
     @property
     def n(self) -> int:
         return len(self.onset_step)
+
+    def in_burst(self, k: int) -> np.ndarray:
+        """``(n, 1)`` bool: step ``k`` falls inside one of the episode's bursts."""
+        return np.any((self.burst_start_step <= k) & (k < self.burst_end_step), axis=1)[:, None]
+
+    def gain_at(self, k: int) -> np.ndarray:
+        """``(n, m)`` each wheel's effectiveness over step ``k``: 1 before the onset, then ``gain
+        (max(1 + creep (k - onset), floor) flicker)`` with ``flicker`` the ``burst_gain`` inside a burst
+        and 1 outside (the fused kernel's order, ``fast._step_episode``)."""
+        active = (k >= self.onset_step)[:, None]
+        since = (k - self.onset_step)[:, None].astype(np.float64)
+        rate, floor, burst = self.gain_creep_per_step, self.gain_creep_floor, self.burst_gain
+        assert rate is not None and floor is not None and burst is not None  # filled in __post_init__
+        creep = np.maximum(1.0 + rate * since, floor)
+        flicker = np.where(self.in_burst(k), burst, 1.0)
+        return np.where(active, self.gain * (creep * flicker), 1.0)
 
     @classmethod
     def healthy(cls, n: int, m: int = 4, bursts: int = 1) -> PlantFault:
@@ -446,10 +481,9 @@ class V3PlantBase(Plant):
         f, fc0 = self.fault, self.constants.wheels.coulomb_nm
         active = (k >= f.onset_step)[:, None]
         ramp = 1.0 + self.ramp_rate * (k - f.onset_step)[:, None]
-        in_burst = np.any((f.burst_start_step <= k) & (k < f.burst_end_step), axis=1)[:, None]
-        burst = np.where(in_burst, f.burst_multiplier, 1.0)
+        burst = np.where(f.in_burst(k), f.burst_multiplier, 1.0)
         return (
-            np.where(active, f.gain, 1.0),
+            f.gain_at(k),
             np.where(active, f.bias, 0.0),
             np.where(active, fc0 * ((f.friction_multiplier * ramp) * burst), fc0),
             np.where(active, f.rod_gain, 1.0),

@@ -36,9 +36,10 @@ STATE_COLUMNS = 19
 # outputs (written): motor torques, rod dipoles, external torque
 _APP, _DPL, _TRQ = 0, 4, 7
 OUT_COLUMNS = 10
-# faults, floats: gain, bias, Coulomb multiplier, ramp rate, burst multiplier (per wheel), rod gains
-_GAIN, _BIAS, _FMUL, _RAMP, _BMUL, _ROD = 0, 4, 8, 12, 16, 20
-FAULT_COLUMNS = 23
+# faults, floats: gain, bias, Coulomb multiplier, ramp rate, burst multiplier (per wheel), rod gains,
+# then (v4) the gain's creep rate, its factor during a burst and the creep's floor (per wheel)
+_GAIN, _BIAS, _FMUL, _RAMP, _BMUL, _ROD, _CREEP, _BGAIN, _FLOOR = 0, 4, 8, 12, 16, 20, 23, 27, 31
+FAULT_COLUMNS = 35
 # faults, ints: onset step, number of bursts, then the bursts' sorted starts, then their ends
 _ONSET, _COUNT, _BURSTS = 0, 1, 2
 
@@ -178,7 +179,6 @@ def _step_episode(e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g,
     w0, w1, w2 = x[e, _OMG], x[e, _OMG + 1], x[e, _OMG + 2]
     o0, o1, o2, o3 = x[e, _WHL], x[e, _WHL + 1], x[e, _WHL + 2], x[e, _WHL + 3]
     if k >= fi[e, _ONSET]:
-        gn0, gn1, gn2, gn3 = ff[e, _GAIN], ff[e, _GAIN + 1], ff[e, _GAIN + 2], ff[e, _GAIN + 3]
         bs0, bs1, bs2, bs3 = ff[e, _BIAS], ff[e, _BIAS + 1], ff[e, _BIAS + 2], ff[e, _BIAS + 3]
         since = float(k - fi[e, _ONSET])
         burst = False
@@ -189,6 +189,19 @@ def _step_episode(e, k, x, cos0, sin0, cos1, sin1, command, ff, fi, tot, inv, g,
             if k < fi[e, _BURSTS + width + j]:
                 burst = True
                 break
+        # gain (creep flicker): both factors exactly 1 on v3's faults, so its bits do not move
+        gn0 = ff[e, _GAIN] * (
+            max(1.0 + ff[e, _CREEP] * since, ff[e, _FLOOR]) * (ff[e, _BGAIN] if burst else 1.0)
+        )
+        gn1 = ff[e, _GAIN + 1] * (
+            max(1.0 + ff[e, _CREEP + 1] * since, ff[e, _FLOOR + 1]) * (ff[e, _BGAIN + 1] if burst else 1.0)
+        )
+        gn2 = ff[e, _GAIN + 2] * (
+            max(1.0 + ff[e, _CREEP + 2] * since, ff[e, _FLOOR + 2]) * (ff[e, _BGAIN + 2] if burst else 1.0)
+        )
+        gn3 = ff[e, _GAIN + 3] * (
+            max(1.0 + ff[e, _CREEP + 3] * since, ff[e, _FLOOR + 3]) * (ff[e, _BGAIN + 3] if burst else 1.0)
+        )
         f0 = coulomb0 * ((ff[e, _FMUL] * (1.0 + ff[e, _RAMP] * since)) * (ff[e, _BMUL] if burst else 1.0))
         f1 = coulomb0 * (
             (ff[e, _FMUL + 1] * (1.0 + ff[e, _RAMP + 1] * since)) * (ff[e, _BMUL + 1] if burst else 1.0)
@@ -333,7 +346,8 @@ class FastV3Plant(V3PlantBase):
         table[:, _NRM : _NRM + 3], table[:, _COP : _COP + 3] = env.facet_normal, env.facet_cop_m
         self._env_table = table
         self._ff = np.ascontiguousarray(np.concatenate(
-            [f.gain, f.bias, f.friction_multiplier, self.ramp_rate, f.burst_multiplier, f.rod_gain], axis=1
+            [f.gain, f.bias, f.friction_multiplier, self.ramp_rate, f.burst_multiplier, f.rod_gain,
+             f.gain_creep_per_step, f.burst_gain, f.gain_creep_floor], axis=1,
         ))  # fmt: skip
         self._fi = np.ascontiguousarray(np.concatenate(
             [f.onset_step[:, None], self.burst_count[:, None], self.burst_start, self.burst_end], axis=1

@@ -93,6 +93,9 @@ class DrawnFault:
     rod_gain: np.ndarray
     inertia_scale: float
     onset_step: int
+    gain_creep_per_step: np.ndarray | None = None
+    gain_creep_floor: np.ndarray | None = None
+    burst_gain: np.ndarray | None = None
 
     @property
     def dead_wheels(self) -> tuple[int, ...]:
@@ -335,17 +338,33 @@ def pinned_episodes(
 ) -> AgileEpisodes:
     """Episodes ``start..stop-1`` of the pinned (or, with ``salt``, sealed) cell, fault-major, drawn
     without drawing the others (equal to that slice of the whole cell). Cached; read-only."""
-    spec = V3
-    ranges, plant, sensors = spec.splits[split], spec.plant, spec.sensors
-    assert isinstance(ranges, AgileSplit) and isinstance(plant, AgilePlant)
-    assert isinstance(sensors, AgileSensors)
+    return draw_cell(V3, sample_fault, split, fault_class, sensor, n_seeds, salt, start, stop)
+
+
+def draw_cell(
+    spec,
+    sample,
+    split: str,
+    fault_class: str,
+    sensor: str | None,
+    n_seeds: int,
+    salt: bytes,
+    start: int,
+    stop: int,
+) -> AgileEpisodes:
+    """Episodes ``start..stop-1`` of a cell of ``spec`` (v3 or a version built on its mission), the
+    faults drawn by ``sample(split ranges, class, plant, rng) -> DrawnFault`` and everything else as
+    the table above says; a class's split ranges are ``class_ranges(spec, split, class)``."""
+    plant, sensors = spec.plant, spec.sensors
+    assert isinstance(plant, AgilePlant) and isinstance(sensors, AgileSensors)
     key = (split, fault_class)
     kind = spec.fault_class(fault_class)
     assert isinstance(kind, AgileFaultClass)
+    ranges = class_ranges(spec, split, kind)
     companion = sensor if sensor is not None else (ranges.compound_sensor if kind.compound else None)
     first, last = start // n_seeds, (stop - 1) // n_seeds
     faults = {
-        i: sample_fault(ranges, kind, plant, generator(spec.version, *key, index=(0, i), salt=salt))
+        i: sample(ranges, kind, plant, generator(spec.version, *key, index=(0, i), salt=salt))
         for i in range(first, last + 1)
     }
     rows = []
@@ -374,11 +393,25 @@ def pinned_episodes(
             4, np.uint32
         )
         rows.append((i, j, fault, sigma0, omega0, speeds, env, targets, drawn, noise, draws))
-    return assemble(spec.version, split, fault_class, sensor, rows, plant)
+    return assemble(spec.version, split, fault_class, sensor, rows, plant, sensors.mag_spike_amount)
+
+
+def class_ranges(spec, split: str, kind: AgileFaultClass) -> AgileSplit:
+    """The ranges class ``kind`` draws from on ``split``: the split's own, unless the split says
+    otherwise for that class (``AgileSplit.for_class``; v3's never do)."""
+    ranges = spec.splits[split]
+    assert isinstance(ranges, AgileSplit)
+    return ranges.for_class(kind.name)
 
 
 def assemble(
-    version: str, split: str, fault_class: str, sensor: str | None, rows: list, plant: AgilePlant
+    version: str,
+    split: str,
+    fault_class: str,
+    sensor: str | None,
+    rows: list,
+    plant: AgilePlant,
+    spike_amount: float,
 ) -> AgileEpisodes:
     """Stack per-episode draws (``pinned_episodes``' rows: fault and seed index, ``DrawnFault``,
     ``sigma0``, ``omega0``, wheel speeds, environment dict, targets, sensor draw, noise seed, mission
@@ -412,6 +445,21 @@ def assemble(
             burst_end_step=ends,
             rod_gain=stack("rod_gain"),
             onset_step=onset,
+            gain_creep_per_step=np.array(
+                [
+                    np.zeros(plant.n_wheels) if f.gain_creep_per_step is None else f.gain_creep_per_step
+                    for f in faults
+                ]
+            ),
+            gain_creep_floor=np.array(
+                [
+                    np.zeros(plant.n_wheels) if f.gain_creep_floor is None else f.gain_creep_floor
+                    for f in faults
+                ]
+            ),
+            burst_gain=np.array(
+                [np.ones(plant.n_wheels) if f.burst_gain is None else f.burst_gain for f in faults]
+            ),
         ),
         inertia_scale=stack("inertia_scale").astype(np.float64),
         environment=Environment(**{k: np.array([e[k] for e in envs]) for k in envs[0]}),
@@ -426,7 +474,7 @@ def assemble(
             kind=part(4).astype(np.int64),
             bias_t=part(5).reshape(n, 3),
             spike_probability=part(6).reshape(n, 3),
-            spike_amount=np.full((n, 3), V3.sensors.mag_spike_amount if V3.sensors else 1.0),
+            spike_amount=np.full((n, 3), spike_amount),
         ),
         outage_end_step=np.where(
             part(7) > 0.0, onset + onset_step(part(7).astype(np.float64), plant.dt_s), 0

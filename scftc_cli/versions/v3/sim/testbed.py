@@ -27,8 +27,8 @@ class MissionSensors(Sensors):
     """Observation ``(n, 26)``: v2's 19 values and the magnetometer (``V3Sensors``), then the
     current window's target MRP (3) and the time left in the window (1, s)."""
 
-    def __init__(self, episodes: AgileEpisodes) -> None:
-        suite = V3.sensors
+    def __init__(self, episodes: AgileEpisodes, suite: AgileSensors | None = None) -> None:
+        suite = V3.sensors if suite is None else suite
         assert isinstance(suite, AgileSensors)
         self.inner = V3Sensors(
             SensorEpisodes(
@@ -64,7 +64,7 @@ class AgileTestbed(Testbed):
     pinned = staticmethod(pinned_episodes)
 
     def sensors(self, episodes: AgileEpisodes) -> Sensors:  # type: ignore[override]
-        return MissionSensors(episodes)
+        return MissionSensors(episodes, self.spec.sensors)
 
     def windows(self) -> tuple[int, ...]:
         return window_ends()
@@ -73,16 +73,18 @@ class AgileTestbed(Testbed):
         return diagnosis_truth(episodes)
 
     def context(self, episodes: AgileEpisodes, privileged: bool) -> Context:  # type: ignore[override]
-        return public_context(episodes, privileged)
+        return public_context(episodes, privileged, self.spec)
 
 
 def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
     """What a perfect detector reports from the onset on, per unit (``spec.UNITS``), read off the
     faults themselves (so a mixed batch works too):
 
-    - a wheel: failed if its gain is 0 or negative (dead or reversed); degraded if its magnitude,
-      offset or friction (constant, ramp end or bursts) is off nominal by more than the plant's
-      ``health_*_tolerance`` (within it the wheel counts healthy);
+    - a wheel: failed if its gain is 0 or negative (dead or reversed), or creeps to 0 before the
+      episode's end (a creep with floor 0); degraded if its magnitude, offset or friction (constant, ramp
+      end or bursts) is off nominal by more than the plant's ``health_*_tolerance`` (within it the
+      wheel counts healthy), if its gain creeps but has not reached 0 at the end, or if it drops
+      out during bursts (``burst_gain`` below 1: an intermittent unit);
     - a rod: failed if its gain is 0 or negative; degraded if it is off 1 (half dipole);
     - a head: failed if stuck, or in an outage (all three) that lasts to the end; degraded if
       biased, or in an outage that ends (an intermittent unit: what it did once it may do again);
@@ -104,8 +106,13 @@ def diagnosis_truth(episodes: AgileEpisodes) -> DiagnosisTruth:
         | (np.abs(np.asarray(f.bias)) > plant.health_offset_tolerance)
         | (friction > plant.health_friction_tolerance)
     )
+    creep = np.asarray(f.gain_creep_per_step)
+    creeping = creep < 0.0
+    zero_step = np.asarray(f.onset_step)[:, None] + 1.0 / np.where(creeping, -creep, 1.0)  # gain reaches 0
+    crept_out = creeping & (np.asarray(f.gain_creep_floor) <= 0.0) & (zero_step <= plant.steps)
+    off = off | creeping | (has_bursts & (np.asarray(f.burst_gain) < 1.0))
     wheels = slice(UNITS.index(WHEEL_UNITS[0]), UNITS.index(WHEEL_UNITS[-1]) + 1)
-    codes[:, wheels] = np.where(gain <= 0.0, FAILED, np.where(off, DEGRADED, HEALTHY))
+    codes[:, wheels] = np.where((gain <= 0.0) | crept_out, FAILED, np.where(off, DEGRADED, HEALTHY))
     rod = np.asarray(f.rod_gain)
     rods = slice(UNITS.index(ROD_UNITS[0]), UNITS.index(ROD_UNITS[-1]) + 1)
     codes[:, rods] = np.where(rod <= 0.0, FAILED, np.where(rod != 1.0, DEGRADED, HEALTHY))
@@ -136,20 +143,21 @@ class TrueAgileFault:
     truth: DiagnosisTruth
 
 
-def public_context(episodes: AgileEpisodes, privileged: bool = False) -> Context:
-    """The context of ``scftc-v3`` episodes: v2's (``dt``, nominal inertia, wheels, sensor noise),
-    plus the magnetometer's noise, the rods, each episode's orbit altitude and inclination, and the
-    health units; the true fault (``TrueAgileFault``) only for a privileged controller."""
-    plant, suite = PLANT, V3.sensors
+def public_context(episodes: AgileEpisodes, privileged: bool = False, spec=V3) -> Context:
+    """The context of ``scftc-v3`` episodes (or of a version built on its mission, ``spec``): v2's
+    (``dt``, nominal inertia, wheels, sensor noise), plus the magnetometer's noise, the rods, each
+    episode's orbit altitude and inclination, and the health units; the true fault
+    (``TrueAgileFault``) only for a privileged controller."""
+    plant, suite = PLANT, spec.sensors
     assert isinstance(suite, AgileSensors)
     knowledge = sensor_knowledge(suite, plant.dt_s)
     env = episodes.environment
     return Context(
         n=episodes.n,
-        benchmark_version=V3.version,
+        benchmark_version=spec.version,
         dt_s=plant.dt_s,
-        obs_dim=V3.obs_dim,
-        action_dim=V3.action_dim,
+        obs_dim=spec.obs_dim,
+        action_dim=spec.action_dim,
         inertia_nominal_kgm2=np.array(plant.inertia_nominal_kgm2),
         wheels=wheel_knowledge(plant),
         sensors=type(knowledge)(**{**knowledge.__dict__, "magnetometer_noise_t": suite.magnetometer_noise_t}),

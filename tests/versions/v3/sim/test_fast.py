@@ -104,6 +104,9 @@ def test_fast_backend_flies_four_wheels_only():
         friction_multiplier=ones,
         friction_ramp_end=ones,
         burst_multiplier=ones,
+        gain_creep_per_step=zeros,
+        gain_creep_floor=zeros,
+        burst_gain=ones,
     )
     constants = dataclasses.replace(
         V3Plant(**random_plant_args(np.random.default_rng(0), 1)).constants, wheels=three
