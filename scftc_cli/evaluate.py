@@ -17,7 +17,7 @@ from scftc_cli.errors import UnknownNameError, UsageError
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.records import CellResult, EpisodeOutcomes, EvalResult
 from scftc_cli.registry import controller_spec
-from scftc_cli.scoring import episode_outcomes, score_cell
+from scftc_cli.scoring import episode_outcomes, score_cell, settled_profile_taus
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.rollout import Rollout, part_rows, rollout, rollout_parts
 from scftc_cli.sim.testbed import testbed
@@ -145,8 +145,27 @@ def evaluate_cell(
     episodes and score it."""
     bed = testbed(spec.version)
     episodes = bed.draw(cell.split, cell.fault_class, cell.sensor, n_faults, n_seeds, salt)
-    flown = rollout(make(cell), episodes, backend=backend, progress=progress)
+    controller = make(cell)
+    check_held_out_open(spec, [cell], getattr(controller, "privileged", False))
+    flown = rollout(controller, episodes, backend=backend, progress=progress, diagnosis=spec.diagnosis)
     return _scored(spec, cell, episodes, flown)
+
+
+def check_held_out_open(spec: BenchmarkSpec, cells: Sequence[Cell], privileged: bool) -> None:
+    """Refuse a deployable controller on a draft version's held-out cells: a version still being
+    calibrated keeps its held-out split unflown (by anything that could be tuned on what it shows)
+    until its battery is frozen. Privileged oracles may fly it (they calibrate the classes)."""
+    from scftc_cli.versions import get_version
+
+    version = get_version(spec.version)
+    if not version.draft or privileged:
+        return
+    held_out = sorted({c.split for c in cells} - {"train"})
+    if held_out:
+        raise UsageError(
+            f"{spec.version} is a draft: its {held_out[0]} split stays unflown by deployable controllers "
+            f"until its battery is frozen ({version.definition[0]}); fly --split train"
+        )
 
 
 def _score(spec: BenchmarkSpec, cell: Cell, outcomes: EpisodeOutcomes) -> CellResult:
@@ -160,6 +179,7 @@ def _score(spec: BenchmarkSpec, cell: Cell, outcomes: EpisodeOutcomes) -> CellRe
         spec.steps,
         spec.dt_s,
         spec.gates.settled_deg,
+        settled_profile_taus(spec.gates),
     )
 
 
@@ -230,7 +250,10 @@ def evaluate_stacked(
             for i, c in zip(group, members, strict=True)
         ]
         controller = make(members[0])
-        flown = rollout_parts(controller, parts, backend=backend, progress=progress, trace_first=True)
+        check_held_out_open(spec, members, getattr(controller, "privileged", False))
+        flown = rollout_parts(
+            controller, parts, backend=backend, progress=progress, trace_first=True, diagnosis=spec.diagnosis
+        )
         for i, cell, part, rows in zip(group, members, parts, flown, strict=True):
             runs[i] = _scored(spec, cell, part, rows)
         if inspect is not None:
@@ -322,6 +345,8 @@ def _evaluate_on_cluster(
     """Every cell split into chunks (a built-in's chunks stacked, ``cluster_tasks``), all mapped
     over the cluster at once, then each cell's chunks concatenated in order and scored here (and
     their readings handed to ``inspect``, cell by cell)."""
+    if isinstance(ref, BuiltinRef):
+        check_held_out_open(spec, cells, controller_spec(ref.name, ref.benchmark).privileged)
     from scftc_cli.distributed.runner import run_stack
 
     faults = spec.n_faults if n_faults is None else n_faults

@@ -79,8 +79,11 @@ class GateStat(BaseModel):
 
 class FinalError(BaseModel):
     """The final true pointing error of a cell's episodes (deg): median, mean and, where recorded,
-    the cell's performance profile: ``profile[i]`` episodes end within ``PROFILE_TAUS_DEG[i]``
-    (``statistics.profile_counts``; 40 log-spaced thresholds from 0.01 to 180 deg)."""
+    the cell's final-error profile: ``profile[i]`` episodes end within ``PROFILE_TAUS_DEG[i]``
+    (``statistics.profile_counts``; 40 log-spaced thresholds from 0.01 to 180 deg). One instant,
+    not the ranked gate: the profile of the gate is ``SettledProfile``; this one stays because
+    every record holds it (the only profile of records older than ``SettledProfile``) and
+    ``leaderboard verify`` checks it."""
 
     median: float
     mean: float
@@ -96,6 +99,71 @@ class FinalError(BaseModel):
         return data
 
 
+class SettledProfile(BaseModel):
+    """The ranked gate read at every tolerance: ``k[i]`` of the cell's ``n`` episodes kept their
+    largest error over the final dwell of every pointing window within ``taus[i]`` deg, i.e. would
+    have settled had the settled tolerance been ``taus[i]`` (the dwell unchanged). ``taus`` is the
+    version's grid ``scoring.settled_profile_taus(spec.gates)``: ``PROFILE_TAUS_DEG`` with the
+    settled and operational tolerances inserted, so that ``k`` there is exactly the cell's settled
+    and operational ``k`` (docs/statistics.md).
+
+    A record written before this existed has none (``CellResult.settled_profile`` ``None``): the
+    per-episode errors it would be derived from are not stored, so it is shown as unavailable.
+    """
+
+    k: list[int] = Field(
+        description="Episodes whose largest error over every window's final dwell is <= each threshold "
+        "of the version's settled-profile grid (PROFILE_TAUS_DEG with the settled and operational "
+        "tolerances inserted); non-decreasing."
+    )
+    interval_by_fault: list[tuple[float, float]] | None = Field(
+        default=None,
+        description="By-fault 95 % interval [low, high] of k[i] / n at each threshold (interval_by_fault "
+        "over the per-fault counts there, which are not stored): the band around the profile.",
+    )
+
+    @model_validator(mode="after")
+    def _a_profile(self) -> SettledProfile:
+        if self.k != sorted(self.k) or min(self.k, default=0) < 0:
+            raise ValueError("settled_profile.k must be non-decreasing counts >= 0")
+        bands = self.interval_by_fault
+        if bands is not None and (
+            len(bands) != len(self.k) or not all(0 <= low <= high <= 1 for low, high in bands)
+        ):
+            raise ValueError(
+                "settled_profile.interval_by_fault must hold one [low, high] in [0, 1] per threshold"
+            )
+        return self
+
+    @model_serializer(mode="wrap")
+    def _omit_absent_band(self, handler: SerializerFunctionWrapHandler) -> dict:
+        data = handler(self)
+        if self.interval_by_fault is None:
+            data.pop("interval_by_fault", None)
+        return data
+
+
+class DiagnosisByFault(BaseModel):
+    """A cell's diagnosis counts per fault, in fault order (each fault holds ``n / len(faulted)``
+    episodes, its initial conditions): what by-fault intervals and the diagnosis ranking's tie test
+    are computed from (``DiagnosisStats``' counts of the same names, split by fault)."""
+
+    faulted: list[int]
+    detected: list[int]
+    isolated: list[int]
+    severity_right: list[int]
+    healthy_episodes: list[int]
+    false_alarm_episodes: list[int]
+    false_isolation_episodes: list[int]
+
+    @model_validator(mode="after")
+    def _one_count_per_fault(self) -> DiagnosisByFault:
+        counts = [getattr(self, name) for name in type(self).model_fields]
+        if len({len(c) for c in counts}) != 1 or min(min(c, default=0) for c in counts) < 0:
+            raise ValueError("by-fault diagnosis counts must hold one count >= 0 per fault of every quantity")
+        return self
+
+
 class DiagnosisStats(BaseModel):
     """What a controller's fault detection said over a cell, against the truth (versions that
     score a diagnosis). Counts, so that rates and intervals can be formed and pooled.
@@ -109,6 +177,10 @@ class DiagnosisStats(BaseModel):
             ``false_alarm_episodes`` of them raised an alarm before any fault.
         healthy_hours, false_alarms: flight time before the onset (or the whole episode) and the
             alarms raised in it (rising edges): ``false_alarms / healthy_hours`` is the rate per hour.
+        reported, false_isolation_episodes, by_fault: recorded under the ``faulted_unit`` rule only
+            (``DiagnosisSpec.detection``; ``None`` and not serialized under ``any_alarm``): whether
+            the controller returned any health report at all, the episodes (of all ``n``) in which
+            some report named a unit the truth holds healthy, and every count per fault.
     """
 
     faulted: int = Field(ge=0)
@@ -121,10 +193,29 @@ class DiagnosisStats(BaseModel):
     false_alarm_episodes: int = Field(ge=0)
     healthy_hours: float = Field(ge=0)
     false_alarms: int = Field(ge=0)
+    reported: bool | None = None
+    false_isolation_episodes: int | None = Field(default=None, ge=0)
+    by_fault: DiagnosisByFault | None = None
 
     @property
     def false_alarms_per_hour(self) -> float:
         return self.false_alarms / self.healthy_hours if self.healthy_hours else 0.0
+
+    @model_validator(mode="after")
+    def _by_fault_adds_up(self) -> DiagnosisStats:
+        if self.by_fault is not None:
+            for name in type(self.by_fault).model_fields:
+                if sum(getattr(self.by_fault, name)) != (getattr(self, name) or 0):
+                    raise ValueError(f"diagnosis by_fault.{name} does not add up to {name}")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _omit_unrecorded(self, handler: SerializerFunctionWrapHandler) -> dict:
+        data = handler(self)
+        for name in ("reported", "false_isolation_episodes", "by_fault"):
+            if getattr(self, name) is None:
+                data.pop(name, None)
+        return data
 
 
 class CellResult(BaseModel):
@@ -144,6 +235,11 @@ class CellResult(BaseModel):
         default=None, description="Settled episodes in each pointing window (versions with several)."
     )
     diagnosis: DiagnosisStats | None = None
+    settled_profile: SettledProfile | None = Field(
+        default=None,
+        description="The ranked gate's performance profile with its by-fault band (absent on records "
+        "written before it existed).",
+    )
     settled_margin_deg: SkipJsonSchema[list[float] | None] = Field(
         default=None,
         exclude=True,
@@ -155,7 +251,7 @@ class CellResult(BaseModel):
     @model_serializer(mode="wrap")
     def _omit_absent(self, handler: SerializerFunctionWrapHandler) -> dict:
         data = handler(self)
-        for name in ("window_settled", "diagnosis"):
+        for name in ("window_settled", "diagnosis", "settled_profile"):
             if getattr(self, name) is None:
                 data.pop(name, None)
         return data
@@ -210,6 +306,10 @@ class EpisodeDiagnosis:
             no fault).
         false_alarms: alarms raised before the onset (rising edges).
         final_codes, truth_codes: ``(n, units)`` the last report and the truth.
+        false_isolation: ``(n,)`` bool, some report named a unit the truth holds healthy (the
+            ``faulted_unit`` rule; ``None`` under ``any_alarm``).
+        reported: whether the controller returned any health report (``faulted_unit`` rule;
+            ``None`` under ``any_alarm``).
     """
 
     onset_step: np.ndarray
@@ -218,6 +318,23 @@ class EpisodeDiagnosis:
     false_alarms: np.ndarray
     final_codes: np.ndarray
     truth_codes: np.ndarray
+    false_isolation: np.ndarray | None = None
+    reported: bool | None = None
+
+    @classmethod
+    def concat(cls, parts: list[EpisodeDiagnosis]) -> EpisodeDiagnosis:
+        """The diagnosis of consecutive slices of one batch, in order (an optional field only where
+        every part holds it; ``reported`` where any part reported)."""
+        joined: dict = {}
+        for f in fields(cls):
+            values = [getattr(p, f.name) for p in parts]
+            if any(v is None for v in values):
+                joined[f.name] = None
+            elif isinstance(values[0], bool):
+                joined[f.name] = any(values)
+            else:
+                joined[f.name] = np.concatenate(values)
+        return cls(**joined)
 
 
 @dataclass(frozen=True)
@@ -252,12 +369,7 @@ class EpisodeOutcomes:
             if any(v is None for v in values):
                 joined[f.name] = None
             elif isinstance(values[0], EpisodeDiagnosis):
-                joined[f.name] = EpisodeDiagnosis(
-                    **{
-                        g.name: np.concatenate([getattr(v, g.name) for v in values])
-                        for g in fields(EpisodeDiagnosis)
-                    }
-                )
+                joined[f.name] = EpisodeDiagnosis.concat(values)
             else:
                 joined[f.name] = np.concatenate(values)
         return cls(**joined)

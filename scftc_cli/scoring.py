@@ -19,16 +19,27 @@ import numpy as np
 
 from scftc_cli.records import (
     CellResult,
+    DiagnosisByFault,
     DiagnosisStats,
     EpisodeDiagnosis,
     EpisodeOutcomes,
     FinalError,
     GateStat,
+    SettledProfile,
 )
 from scftc_cli.sim.rollout import HealthTrace, Rollout
 from scftc_cli.sim.testbed import DiagnosisTruth
 from scftc_cli.spec import GATES, GateSpec
-from scftc_cli.statistics import design_effect, interval_by_fault, per_fault_counts, profile_counts
+from scftc_cli.statistics import (
+    PROFILE_TAUS_DEG,
+    design_effect,
+    interval_by_fault,
+    per_fault_counts,
+    profile_by_fault,
+    profile_counts,
+    profile_intervals,
+    with_thresholds,
+)
 
 
 def trajectory_gates(error_deg: np.ndarray, gates: GateSpec) -> dict[str, np.ndarray]:
@@ -111,17 +122,32 @@ def episode_diagnosis(trace: HealthTrace | None, truth: DiagnosisTruth) -> Episo
     detected = trace.first_alarm_after_onset >= 0
     delay = np.where(detected, trace.first_alarm_after_onset - truth.onset_step, -1)
     return EpisodeDiagnosis(
-        truth.onset_step, trace.first_alarm_step, delay, trace.false_alarms, trace.final_codes, truth.codes
+        truth.onset_step,
+        trace.first_alarm_step,
+        delay,
+        trace.false_alarms,
+        trace.final_codes,
+        truth.codes,
+        trace.false_isolation,
+        None if trace.false_isolation is None else trace.reported,
     )
 
 
-def diagnosis_stats(d: EpisodeDiagnosis, steps: int, dt_s: float) -> DiagnosisStats:
-    """A cell's diagnosis counts from its episodes' (``DiagnosisStats``).
+def diagnosis_stats(
+    d: EpisodeDiagnosis, steps: int, dt_s: float, fault_index: np.ndarray | None = None
+) -> DiagnosisStats:
+    """A cell's diagnosis counts from its episodes' (``DiagnosisStats``; docs/diagnosis.md).
 
     An episode is faulted when its onset falls inside the episode; its detection delay is measured
-    from the onset to the first alarm at or after it (an alarm raised earlier that is still on at
-    the onset counts at the onset: delay 0). Healthy flight is the time before the onset (the whole
-    episode without a fault); a false-alarm episode raised an alarm in it.
+    from the onset to the first detecting alarm at or after it (an alarm raised earlier that is
+    still on at the onset counts at the onset: delay 0; which alarms detect is the version's rule,
+    ``DiagnosisSpec.detection``, applied during the rollout). Healthy flight is the time before the
+    onset (the whole episode without a fault); a false-alarm episode raised an alarm in it.
+
+    Under the ``faulted_unit`` rule (``d.false_isolation`` given) the record also holds whether
+    the controller reported at all, its false-isolation episodes and, with ``fault_index``
+    (``(n,)`` int, each episode's fault; every fault holding as many episodes), every count per
+    fault (``DiagnosisByFault``).
     """
     faulted = d.onset_step < steps
     detected = faulted & (d.delay_steps >= 0)
@@ -130,6 +156,20 @@ def diagnosis_stats(d: EpisodeDiagnosis, steps: int, dt_s: float) -> DiagnosisSt
     false_episode = (d.first_alarm_step >= 0) & (d.first_alarm_step < healthy_steps)
     isolated = faulted & np.all((d.final_codes > 0) == (d.truth_codes > 0), axis=1)
     exact = faulted & np.all(d.final_codes == d.truth_codes, axis=1)
+    by_fault = None
+    if d.false_isolation is not None and fault_index is not None:
+        per = {
+            "faulted": faulted,
+            "detected": detected,
+            "isolated": isolated,
+            "severity_right": exact,
+            "healthy_episodes": healthy_steps > 0,
+            "false_alarm_episodes": false_episode,
+            "false_isolation_episodes": d.false_isolation,
+        }
+        by_fault = DiagnosisByFault(
+            **{name: per_fault_counts(flags, fault_index)[0].tolist() for name, flags in per.items()}
+        )
     return DiagnosisStats(
         faulted=int(faulted.sum()),
         detected=int(detected.sum()),
@@ -141,7 +181,37 @@ def diagnosis_stats(d: EpisodeDiagnosis, steps: int, dt_s: float) -> DiagnosisSt
         false_alarm_episodes=int(false_episode.sum()),
         healthy_hours=float(healthy_steps.sum() * dt_s / 3600.0),
         false_alarms=int(d.false_alarms.sum()),
+        reported=d.reported,
+        false_isolation_episodes=None if d.false_isolation is None else int(d.false_isolation.sum()),
+        by_fault=by_fault,
     )
+
+
+def settled_profile_taus(gates: GateSpec) -> np.ndarray:
+    """``(t,)`` thresholds (deg) of a version's ranked-gate profile (``SettledProfile``):
+    ``PROFILE_TAUS_DEG`` with the settled and operational tolerances inserted (42 where neither is
+    on the grid), so that the profile reads both gates exactly."""
+    return with_thresholds(PROFILE_TAUS_DEG, (gates.settled_deg, gates.operational_deg))
+
+
+def settled_profile(
+    dwell_max_error_deg: np.ndarray,
+    taus_deg: np.ndarray,
+    fault_index: np.ndarray | None = None,
+    confidence: float = 0.95,
+) -> SettledProfile:
+    """The ranked gate's profile of a cell: at each threshold of ``taus_deg`` (``(t,)`` deg,
+    ``settled_profile_taus``) the episodes whose ``dwell_max_error_deg`` (``(n,)`` deg, the largest
+    error over the final dwell of every pointing window) is ``<=`` it; with ``fault_index``
+    (``(n,)`` int, every fault holding as many episodes) also the by-fault interval there. At a
+    gate's tolerance it is that gate's ``k`` and by-fault interval, bit for bit: the same
+    comparison on the same numbers (``GateSpec.passed``)."""
+    k = profile_counts(dwell_max_error_deg, taus_deg)
+    if fault_index is None:
+        return SettledProfile(k=k.tolist())
+    counts, seeds = profile_by_fault(dwell_max_error_deg, fault_index, taus_deg)
+    bands = profile_intervals(counts, seeds, confidence=confidence)
+    return SettledProfile(k=k.tolist(), interval_by_fault=[(float(lo), float(hi)) for lo, hi in bands])
 
 
 def score_cell(
@@ -153,12 +223,14 @@ def score_cell(
     steps: int = 0,
     dt_s: float = 0.0,
     settled_deg: float | None = None,
+    profile_taus_deg: np.ndarray | None = None,
 ) -> CellResult:
     """The scored cell of a batch's per-episode outcomes (with the by-fault statistics where the
     outcomes know each episode's fault, each window's settled count where there are several, and
     the diagnosis where it is scored: ``steps`` and ``dt_s`` then say the episode's length). With
     ``settled_deg``, each episode's distance from the settled gate rides along in memory
-    (``CellResult.settled_margin_deg``)."""
+    (``CellResult.settled_margin_deg``); with ``profile_taus_deg`` (``settled_profile_taus``) the
+    ranked gate's profile is recorded (``CellResult.settled_profile``)."""
     margin = None if settled_deg is None else (outcomes.dwell_max_error_deg - settled_deg).tolist()
     return CellResult(
         settled_margin_deg=margin,
@@ -175,5 +247,12 @@ def score_cell(
         window_settled=None
         if outcomes.window_settled is None
         else outcomes.window_settled.sum(axis=0).tolist(),
-        diagnosis=None if outcomes.diagnosis is None else diagnosis_stats(outcomes.diagnosis, steps, dt_s),
+        diagnosis=None
+        if outcomes.diagnosis is None
+        else diagnosis_stats(outcomes.diagnosis, steps, dt_s, outcomes.fault_index),
+        settled_profile=None
+        if profile_taus_deg is None
+        else settled_profile(
+            outcomes.dwell_max_error_deg, profile_taus_deg, outcomes.fault_index, confidence
+        ),
     )

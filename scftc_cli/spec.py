@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, model_validator
 
 from scftc_cli import versions
 from scftc_cli.errors import UnknownNameError, UsageError
@@ -213,13 +213,52 @@ class DiagnosisSpec(_Frozen):
             one code per unit: 0 healthy, 1 degraded, 2 failed.
         false_alarm_budget: the largest fraction of healthy episodes (nominal ones, or before the
             onset) in which an entry may raise an alarm before the board flags it.
+        detection: what counts as detecting a fault (docs/diagnosis.md). ``any_alarm``: any unit
+            reported not healthy at or after the onset. ``faulted_unit``: only a report at or
+            after the onset that names a unit the fault left not healthy; a report naming a
+            healthy unit, at any time, is a false isolation.
+        ranked: the board ranks the diagnosis on its own, beside the settled ranking (needs the
+            ``faulted_unit`` rule: under ``any_alarm`` an alarm raised at step 0 and never lowered
+            would detect every fault with no delay).
     """
 
     units: tuple[str, ...]
     false_alarm_budget: float = 0.01
+    detection: Literal["any_alarm", "faulted_unit"] = "any_alarm"
+    ranked: bool = False
+
+    @model_validator(mode="after")
+    def _ranked_needs_the_faulted_unit_rule(self) -> DiagnosisSpec:
+        if self.ranked and self.detection != "faulted_unit":
+            raise ValueError("a ranked diagnosis needs detection='faulted_unit'")
+        return self
 
 
 HEALTH_CODES = {0: "healthy", 1: "degraded", 2: "failed"}
+
+
+class AdmissionRule(_Frozen):
+    """When a fault class may rank: it must leave room to win and must not be won without knowing
+    the fault. Checked on the train split before a version is frozen, reported held out after.
+
+    Attributes:
+        oracle: the privileged controller that shows the class can be flown.
+        oracle_at_least: the smallest settled rate the oracle must reach on the class.
+        unaware: the fault-unaware, train-tuned controller that shows the class needs fault
+            tolerance.
+        unaware_at_most: the largest settled rate the unaware controller may reach on it.
+        split: where the rule is decided (the held-out split only reports it).
+    """
+
+    oracle: str
+    oracle_at_least: float
+    unaware: str
+    unaware_at_most: float
+    split: str = "train"
+
+    def admits(self, oracle_rate: float, unaware_rate: float) -> bool:
+        """Whether a class with these settled rates (fractions) may rank."""
+        return oracle_rate >= self.oracle_at_least and unaware_rate <= self.unaware_at_most
 
 
 class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
@@ -238,6 +277,8 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
         ranked_classes: the classes whose mean settled rate ranks deployable entries.
         n_faults, n_seeds: a full cell is ``n_faults x n_seeds`` episodes.
         diagnosis: what a controller's fault detection is scored on (``None``: not scored).
+        admission: the rule a class passes to be in ``ranked_classes`` (``None``: the version
+            predates it).
     """
 
     version: str
@@ -256,6 +297,7 @@ class BenchmarkSpec(_Frozen, Generic[PlantT, SplitT, SensorsT]):
     n_seeds: int = 10
     confidence: float = 0.95
     diagnosis: DiagnosisSpec | None = None
+    admission: AdmissionRule | None = None
 
     @property
     def fault_classes(self) -> tuple[str, ...]:

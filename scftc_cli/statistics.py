@@ -345,11 +345,61 @@ def performance_profile(
 
 
 def profile_counts(final_error_deg: np.ndarray, taus_deg: np.ndarray = PROFILE_TAUS_DEG) -> np.ndarray:
-    """``(t,)`` int: episodes of one cell whose final error is ``<= tau``, for each ``tau``: what a
-    board would store per cell (40 integers on ``PROFILE_TAUS_DEG``, exact, and pooled over cells
-    by ``pooled_profile``)."""
+    """``(t,)`` int: episodes of one cell whose error is ``<= tau``, for each ``tau``: what a board
+    stores per cell (integers on a fixed grid, exact, and pooled over cells by ``pooled_profile``).
+    Given the final errors it is the final-error profile (``FinalError.profile``, on
+    ``PROFILE_TAUS_DEG``); given each episode's largest error over the final dwell of every pointing
+    window it is the ranked gate's profile (``SettledProfile``), equal at the settled tolerance to
+    the settled count."""
     errors = np.asarray(final_error_deg, dtype=float)
     return np.count_nonzero(errors[:, None] <= np.asarray(taus_deg, dtype=float)[None, :], axis=0)
+
+
+def with_thresholds(taus_deg: np.ndarray, thresholds_deg: Sequence[float]) -> np.ndarray:
+    """``(t',)`` the grid ``taus_deg`` (deg) with ``thresholds_deg`` inserted, sorted and without
+    repeats: a profile on it reads each threshold exactly, not at the nearest grid point."""
+    return np.union1d(np.asarray(taus_deg, dtype=float), np.asarray(thresholds_deg, dtype=float))
+
+
+def profile_by_fault(
+    error_deg: np.ndarray, fault_index: np.ndarray, taus_deg: np.ndarray = PROFILE_TAUS_DEG
+) -> tuple[np.ndarray, int]:
+    """``(counts (t, n_faults) int, seeds)``: for each ``tau`` of ``taus_deg`` (deg), the episodes
+    of each fault (ascending fault index, as ``per_fault_counts``) whose error is ``<= tau``.
+
+    Args:
+        error_deg: ``(n,)`` one error per episode (deg); a profile of the ranked gate passes each
+            episode's largest error over the final dwell of every pointing window.
+        fault_index: ``(n,)`` int, the fault of each episode.
+    """
+    errors, taus = np.asarray(error_deg, dtype=float), np.asarray(taus_deg, dtype=float)
+    rows = [per_fault_counts(errors <= tau, fault_index) for tau in taus]
+    seeds = rows[0][1] if rows else 1
+    return np.array([counts for counts, _ in rows], dtype=np.int64).reshape(taus.size, -1), seeds
+
+
+def profile_intervals(counts: np.ndarray, seeds: int, *, confidence: float = 0.95) -> np.ndarray:
+    """``(t, 2)`` the by-fault interval (``interval_by_fault``) of a profile at each threshold: the
+    band around it.
+
+    Args:
+        counts: ``(t, n_faults)`` int, the passing episodes of each fault at each threshold
+            (``profile_by_fault``), or ``(t, n_strata, n_faults)`` for classes pooled.
+        seeds: episodes per fault.
+
+    Returns:
+        ``[low, high]`` fractions per threshold; each contains the profile's rate there (it is
+        never narrower than Wilson's, which contains ``k / n``). Thresholds whose per-fault counts
+        repeat (the flat tails of a profile) are computed once.
+    """
+    done: dict[bytes, tuple[float, float]] = {}
+    out = np.empty((len(counts), 2))
+    for i, row in enumerate(np.asarray(counts, dtype=np.int64)):
+        key = row.tobytes()
+        if key not in done:
+            done[key] = interval_by_fault(row, seeds, confidence=confidence)
+        out[i] = done[key]
+    return out
 
 
 def pooled_profile(counts: np.ndarray, n: np.ndarray) -> np.ndarray:

@@ -7,16 +7,22 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
+from scftc_cli.evaluate import Cell, evaluate_cell
+from scftc_cli.records import EpisodeOutcomes
 from scftc_cli.registry import make_controller
 from scftc_cli.scoring import (
     episode_outcomes,
     gate_stat,
+    score_cell,
+    settled_profile,
+    settled_profile_taus,
     trajectory_gates,
     wilson_interval,
 )
 from scftc_cli.sim.rollout import rollout
-from scftc_cli.spec import GateSpec
-from scftc_cli.statistics import design_effect, interval_by_fault
+from scftc_cli.spec import GateSpec, get_spec
+from scftc_cli.statistics import design_effect, interval_by_fault, profile_by_fault
+from scftc_cli.versions import published_names
 from scftc_cli.versions.v1.sim.testbed import TESTBED
 from scftc_cli.versions.v1.spec import V1
 
@@ -123,3 +129,61 @@ def test_gate_stat_carries_recomputable_by_fault_numbers():
         plain.ci_high,
     )
     assert plain.by_fault is None and set(plain.model_dump()) == {"k", "rate", "ci_low", "ci_high"}
+
+
+# ------------------------------------------------------------------ the ranked gate's profile
+@pytest.mark.slow
+@pytest.mark.parametrize("version", published_names())
+def test_the_settled_profile_reads_the_ranked_gate_on_every_version(version):
+    """At the settled tolerance the profile is the settled count, fault by fault, with the settled
+    gate's by-fault interval; at the operational tolerance the operational one; it is monotone and
+    each band contains its rate. ``rma_student`` on ``friction`` (v1: ``gain``) settles part of a
+    small batch, and on v3 its final error says otherwise (it ends within the gate more often than
+    it holds within it over every window's dwell)."""
+    spec = get_spec(version)
+    fault_class = "friction" if "friction" in spec.fault_classes else "gain"
+    run = evaluate_cell(
+        lambda _c: make_controller("rma_student", version),
+        spec,
+        Cell("test", fault_class),
+        n_faults=4,
+        n_seeds=3,
+    )
+    cell, taus = run.result, settled_profile_taus(spec.gates)
+    profile = cell.settled_profile
+    assert profile is not None and profile.interval_by_fault is not None and len(profile.k) == len(taus)
+    assert np.all(np.diff(profile.k) >= 0) and profile.k[-1] == cell.n
+    for gate, tolerance in (("settled", spec.gates.settled_deg), ("operational", spec.gates.operational_deg)):
+        i = int(np.flatnonzero(taus == tolerance)[0])
+        stat = getattr(cell, gate)
+        assert profile.k[i] == stat.k, gate
+        assert tuple(profile.interval_by_fault[i]) == stat.interval_by_fault, gate
+        counts, _ = profile_by_fault(run.outcomes.dwell_max_error_deg, run.outcomes.fault_index, taus)
+        assert counts[i].tolist() == stat.by_fault, gate
+    for k, (low, high) in zip(profile.k, profile.interval_by_fault, strict=True):
+        assert low <= k / cell.n <= high
+    assert 0 < cell.settled.k < cell.n or version == "scftc-v1"  # a profile with something to read
+    if version == "scftc-v3":  # three windows: the dwell of every one, not the final error
+        within_at_end = int(np.count_nonzero(run.outcomes.final_error_deg <= spec.gates.settled_deg))
+        assert within_at_end > cell.settled.k
+
+
+def test_score_cell_records_a_settled_profile_only_when_given_its_grid():
+    rng = np.random.default_rng(3)
+    worst = rng.lognormal(-1.5, 1.0, 12)
+    outcomes = EpisodeOutcomes(
+        settled=worst <= 0.2,
+        operational=worst <= 5.0,
+        touch_once=np.ones(12, bool),
+        final_error_deg=worst / 2,
+        settling_time_s=np.zeros(12),
+        dwell_max_error_deg=worst,
+        fault_index=np.repeat(np.arange(4), 3),
+    )
+    assert score_cell(outcomes, "test", "gain", None).settled_profile is None
+    assert "settled_profile" not in score_cell(outcomes, "test", "gain", None).model_dump()
+    taus = settled_profile_taus(GATES)
+    cell = score_cell(outcomes, "test", "gain", None, profile_taus_deg=taus)
+    assert cell.settled_profile == settled_profile(worst, taus, outcomes.fault_index)
+    assert cell.settled_profile.k[int(np.flatnonzero(taus == 0.2)[0])] == cell.settled.k
+    assert settled_profile(worst, taus).interval_by_fault is None  # faults unknown: no band

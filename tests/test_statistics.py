@@ -21,9 +21,12 @@ from scftc_cli.statistics import (
     per_fault_counts,
     performance_profile,
     pooled_profile,
+    profile_by_fault,
     profile_counts,
+    profile_intervals,
     settled_at,
     two_sample_by_fault,
+    with_thresholds,
 )
 
 
@@ -333,6 +336,39 @@ def test_pooled_profile_from_stored_counts_is_the_profile_of_the_cells():
     counts = np.stack([profile_counts(c) for c in cells])
     np.testing.assert_allclose(pooled_profile(counts, np.full(3, 500)), performance_profile(cells))
     np.testing.assert_allclose(performance_profile(cells), performance_profile(np.concatenate(cells)))
+
+
+def test_with_thresholds_puts_each_gate_on_the_grid_exactly():
+    taus = with_thresholds(PROFILE_TAUS_DEG, (0.2, 5.0))
+    assert taus.size == 42 and np.all(np.diff(taus) > 0)
+    assert 0.2 in taus and 5.0 in taus and set(PROFILE_TAUS_DEG) <= set(taus)
+    assert with_thresholds(PROFILE_TAUS_DEG, (PROFILE_TAUS_DEG[3],)).size == 40  # no repeats
+
+
+def test_profile_by_fault_splits_the_profile_and_its_band_contains_it():
+    rng = np.random.default_rng(2)
+    seeds, n_faults = 10, 50
+    scale = np.repeat(rng.lognormal(-1, 1.5, n_faults), seeds)  # faults alike within, unlike across
+    worst = scale * rng.lognormal(0, 0.3, seeds * n_faults)
+    fault_index = np.repeat(np.arange(n_faults), seeds)
+    taus = with_thresholds(PROFILE_TAUS_DEG, (0.2, 5.0))
+    counts, got_seeds = profile_by_fault(worst, fault_index, taus)
+    k = profile_counts(worst, taus)
+    assert counts.shape == (taus.size, n_faults) and got_seeds == seeds
+    np.testing.assert_array_equal(counts.sum(axis=1), k)
+    assert np.all(np.diff(counts, axis=0) >= 0) and np.all(np.diff(k) >= 0)  # monotone, per fault too
+    # each threshold's count of the settled gate at that tolerance: settled_at, fault by fault
+    i = int(np.flatnonzero(taus == 0.2)[0])
+    assert k[i] == settled_at(worst, (0.2,))[0]
+    np.testing.assert_array_equal(counts[i], per_fault_counts(worst <= 0.2, fault_index)[0])
+    bands = profile_intervals(counts, seeds)
+    rate = k / worst.size
+    assert np.all(bands[:, 0] <= rate) and np.all(rate <= bands[:, 1])
+    for j in (0, i, taus.size // 2, taus.size - 1):
+        assert tuple(bands[j]) == interval_by_fault(counts[j], seeds)
+    # several classes pooled: (t, n_strata, n_faults), one stratified interval a threshold
+    pooled = profile_intervals(np.stack([counts, counts[:, ::-1]], axis=1), seeds)
+    assert tuple(pooled[i]) == interval_by_fault([counts[i], counts[i][::-1]], seeds)
 
 
 def test_settled_at_is_the_settled_gate_at_each_threshold():

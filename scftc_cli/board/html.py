@@ -28,11 +28,21 @@ import numpy as np
 
 from scftc_cli import __version__
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
-from scftc_cli.board.ranking import Pooled, Ranked, Ranking, pooled_profile_of, pooled_settled, rank_board
+from scftc_cli.board.ranking import (
+    Pooled,
+    Ranked,
+    Ranking,
+    pooled_profile_of,
+    pooled_settled,
+    pooled_settled_profile_of,
+    rank_board,
+)
 from scftc_cli.board.render import (
     DIAGNOSIS_HEADERS,
+    DIAGNOSIS_RANKING_HEADERS,
     by_class,
     diagnosis_cells,
+    diagnosis_ranking_cells,
     flag_sentence,
     flag_text,
     history_parts,
@@ -42,6 +52,7 @@ from scftc_cli.board.render import (
 )
 from scftc_cli.board.svg import Line, profile_chart, style_of, swatch
 from scftc_cli.records import GateStat
+from scftc_cli.scoring import settled_profile_taus
 from scftc_cli.spec import BenchmarkSpec, get_spec
 from scftc_cli.statistics import PROFILE_TAUS_DEG
 
@@ -349,17 +360,36 @@ def _gate_text(stat: GateStat, by_fault: bool = True) -> str:
     return text
 
 
-def _class_profiles(e: Entry, classes: Sequence[str], ranked: Sequence[str], gate_deg: float) -> str:
-    """The small chart of an entry's details: one profile per actuator class on its ranked draw
-    (sealed, or public while pending), and the pooled one over the ranked classes in black."""
+DWELL_AXIS = "largest error over every window's final dwell τ (deg, log scale)"
+"""The ranked-gate profile's axis: what each episode contributes (``Rollout.dwell_max_error_deg``)."""
+
+
+def _class_profiles(e: Entry, spec: BenchmarkSpec, ranked: Sequence[str]) -> str:
+    """The small chart of an entry's details: one profile of the ranked gate per actuator class on
+    its ranked draw (sealed, or public while pending), each over its by-fault band, and the pooled
+    one over the ranked classes in black with its by-fault interval at the gate. A record older than
+    the ranked gate's profile shows its final-error profile instead, said so."""
     cells = e.sealed or e.public
     draw = "sealed" if e.sealed else "public"
+    gate_profile = pooled_settled_profile_of(cells, ranked) is not None
     lines = []
-    for i, c in enumerate(classes):
+    for i, c in enumerate(spec.fault_classes):
         colour, dash = style_of(i)
-        values = pooled_profile_of(cells, [c])
-        lines.append(Line(key=c, label=f"{c} ({draw})", values=values.tolist(), colour=colour, dash=dash))
-    pooled = pooled_profile_of(cells, ranked)
+        chosen = [x for x in cells if x.sensor is None and x.fault_class == c]
+        band = None
+        if gate_profile:
+            values = pooled_settled_profile_of(cells, [c])
+            single = chosen[0].settled_profile if len(chosen) == 1 else None
+            band = None if single is None else single.interval_by_fault
+        else:
+            values = pooled_profile_of(cells, [c])
+        if values is None:
+            continue
+        lines.append(
+            Line(key=c, label=f"{c} ({draw})", values=values.tolist(), colour=colour, dash=dash, band=band)
+        )
+    pooled = pooled_settled_profile_of(cells, ranked) if gate_profile else None
+    pooled = pooled_profile_of(cells, ranked) if pooled is None else pooled
     lines.append(
         Line(
             key="pooled",
@@ -367,6 +397,7 @@ def _class_profiles(e: Entry, classes: Sequence[str], ranked: Sequence[str], gat
             values=pooled.tolist(),
             colour="#1d2330",
             width=3,
+            at_gate=pooled_settled(cells, tuple(ranked)).interval_by_fault if gate_profile else None,
         )
     )
     legend = "".join(
@@ -375,15 +406,23 @@ def _class_profiles(e: Entry, classes: Sequence[str], ranked: Sequence[str], gat
     )
     chart = profile_chart(
         lines,
-        PROFILE_TAUS_DEG.tolist(),
+        (settled_profile_taus(spec.gates) if gate_profile else PROFILE_TAUS_DEG).tolist(),
         width=380,
         height=200,
-        gate_deg=gate_deg,
+        gate_deg=spec.gates.settled_deg,
         caption=f"performance profile of {e.name} by class ({draw} draw)",
         compact=True,
+        x_title=DWELL_AXIS if gate_profile else "final pointing error τ (deg, log scale)",
+    )
+    head = (
+        f"settled-gate profile by class (error over every window's final dwell), {draw} draw; "
+        "shaded: by-fault 95 % band"
+        if gate_profile
+        else f"final-error profile by class, {draw} draw (the settled-gate profile is unavailable for "
+        "this record: it predates it)"
     )
     return (
-        f'<figure class="profile small"><div class="legend-head">final-error profile by class, {draw} draw'
+        f'<figure class="profile small"><div class="legend-head">{esc(head)}'
         f"</div>{chart}<ol class='legend'>{legend}</ol></figure>"
     )
 
@@ -392,7 +431,7 @@ def _details(e: Entry, spec: BenchmarkSpec, ranked: Sequence[str], columns: int)
     return (
         f'<tr class="details" hidden><td colspan="{columns}"><div class="details-grid">'
         f"<div>{_meta(e)}</div>"
-        f"<div>{_class_profiles(e, spec.fault_classes, ranked, spec.gates.settled_deg)}</div>"
+        f"<div>{_class_profiles(e, spec, ranked)}</div>"
         f'<div class="wide">{_cells_table(e)}</div>'
         "</div></td></tr>"
     )
@@ -521,6 +560,42 @@ def _diagnosis_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
     )
 
 
+def _diagnosis_ranking_table(ranking: Ranking, spec: BenchmarkSpec) -> str:
+    """The diagnosis ranking (versions that rank it; ``board/diagnosis.py``): its rule, then the
+    ranked entries in tie groups and those over the false-alarm budget with the reason; empty
+    elsewhere."""
+    standings = ranking.diagnosis
+    if standings is None:
+        return ""
+    headers = [(h, "", "") for h in DIAGNOSIS_RANKING_HEADERS]
+    bodies = []
+    for r in [*standings.ranked, *standings.unranked]:
+        cells = diagnosis_ranking_cells(r)
+        rank = "" if r.rank is None else f"{r.rank:06d}"
+        row = [
+            f'<td data-sort="{rank or "999999"}">{esc(cells[0])}</td>',
+            f'<td data-sort="{esc(r.name)}"><span class="name">{esc(r.name)}</span></td>',
+            f'<td data-sort="{r.pool.isolated.rate:.6f}">{esc(cells[2])}</td>',
+            *(f"<td>{esc(text)}</td>" for text in cells[3:]),
+        ]
+        bodies.append(f'<tbody><tr data-name="{esc(r.name)}">{"".join(row)}</tr></tbody>')
+    if not bodies:
+        bodies.append(
+            f'<tbody><tr><td colspan="{len(headers)}">(no entry reports a diagnosis)</td></tr></tbody>'
+        )
+    silent = (
+        f'<p class="note">Not listed (they report no diagnosis): {esc(", ".join(standings.silent))}.</p>'
+        if standings.silent
+        else ""
+    )
+    return (
+        f'<p class="rule"><b>Diagnosis ranking:</b> {esc(standings.rule)}. Shares in %, Wilson 95 % '
+        "interval in brackets, by-fault 95 % interval in braces.</p>"
+        f'<table class="sortable wrap-heads" id="{esc(spec.version)}-diagnosis-ranking">{_heads(headers)}'
+        f"{''.join(bodies)}</table>{silent}"
+    )
+
+
 def _pending_table(board: Leaderboard, ranking: Ranking, spec: BenchmarkSpec) -> str:
     """Entries whose round is not sealed yet: public draw only, with their round; not ranked."""
     version = esc(spec.version)
@@ -615,22 +690,97 @@ def _history_list(board: Leaderboard) -> str:
 
 # -------------------------------------------------------------------------------------- profiles
 def _profiles(ranking: Ranking, spec: BenchmarkSpec) -> str:
-    """The pooled performance profile of every ranked entry, one line each, legend in rank order."""
-    version = esc(spec.version)
+    """The pooled profile of the ranked gate of every ranked entry, one line each, legend in rank
+    order, each with its by-fault interval at the settled gate (where it equals the ranked rate).
+    Where some ranked entry's records predate that profile (every published v1-v3 record), the
+    final-error profile is drawn instead, said so, with the entries that lack it named."""
     ranked = ranking.ranked_classes
+    dwell_s = spec.gates.dwell_steps * spec.dt_s
+    if not ranking.deployable:
+        return _profile_note(spec, True) + "<p>(no ranked entries yet)</p>"
+    profiles = {r.entry.name: pooled_settled_profile_of(r.entry.sealed, ranked) for r in ranking.deployable}
+    missing = [name for name, values in profiles.items() if values is None]
+    if missing:
+        return _final_error_profiles(ranking, spec, missing)
+    taus = settled_profile_taus(spec.gates)
     gate = spec.gates.settled_deg
-    how = (
+    gate_index = int(np.flatnonzero(taus == gate)[0])  # the grid holds the tolerance itself
+    lines, legend = [], []
+    for i, r in enumerate(ranking.deployable):
+        colour, dash = style_of(i)
+        name = r.entry.name
+        values = np.asarray(profiles[name])
+        low, high = r.sealed.interval_by_fault
+        lines.append(
+            Line(
+                key=name,
+                label=f"{rank_text(r)} {name}",
+                values=values.tolist(),
+                colour=colour,
+                dash=dash,
+                at_gate=(low, high),
+            )
+        )
+        legend.append(
+            f'<li data-key="{esc(name)}">{swatch(colour, dash)}<span class="rank">{esc(rank_text(r))}</span>'
+            f'<span class="name">{esc(name)}</span>'
+            f'<span class="at-gate" title="settled rate: within {gate:g}° over every window\'s final '
+            f'{dwell_s:g} s; by-fault 95 % interval {100 * low:.1f} to {100 * high:.1f} %">'
+            f"{100 * values[gate_index]:.1f} %</span></li>"
+        )
+    chart = profile_chart(
+        lines,
+        taus.tolist(),
+        width=820,
+        height=380,
+        gate_deg=gate,
+        caption=f"settled-gate profiles of the ranked entries of {spec.version}, sealed draw",
+        x_title=DWELL_AXIS,
+    )
+    return (
+        _profile_note(spec, True)
+        + f'<figure class="profile" id="{esc(spec.version)}-profile-chart">{chart}<div>'
+        f'<div class="legend-head"><span>rank, controller</span><span>settled (≤ {gate:g}°)</span></div>'
+        f'<ol class="legend">{"".join(legend)}</ol></div></figure>'
+    )
+
+
+def _profile_note(spec: BenchmarkSpec, gate_profile: bool) -> str:
+    """How to read the profile chart: the ranked gate's, or (old records) the final error's."""
+    gate, dwell_s = spec.gates.settled_deg, spec.gates.dwell_steps * spec.dt_s
+    more = f'More in <a href="{STATISTICS_DOC}">{STATISTICS_DOC}</a>. Hover a name to pick out its line.'
+    if gate_profile:
+        return (
+            '<p class="note">How to read it: a line at height <i>y</i> above <i>τ</i> says that a fraction '
+            f"<i>y</i> of the entry's episodes kept their pointing error within <i>τ</i> over the final "
+            f"{dwell_s:g} s of every pointing window: the settled gate, had its tolerance been <i>τ</i>. "
+            f"At the dashed line ({gate:g}°) it is exactly the ranked settled rate, and the bar across it "
+            "is its by-fault 95 % interval; higher and further left is better, and a line that stays low "
+            "until large <i>τ</i> leaves many episodes far off target. Each class's profile with its "
+            f"by-fault band is in the entry's details. {more}</p>"
+        )
+    return (
         '<p class="note">How to read it: a line at height <i>y</i> above <i>τ</i> says that a fraction '
         "<i>y</i> of the entry's episodes ended with a pointing error of at most <i>τ</i>; higher and "
         "further left is better, and a line that stays low until large <i>τ</i> leaves many episodes far "
         "off target. It is the error at the end of the episode, not the settled gate (which asks the "
-        "error to stay within "
-        f"{gate:g}° over the final {spec.gates.dwell_steps * spec.dt_s:g} s), so its height at the dashed "
-        f'line is not the settled rate. More in <a href="{STATISTICS_DOC}">{STATISTICS_DOC}</a>. Hover a '
-        "name to pick out its line.</p>"
+        f"error to stay within {gate:g}° over the final {dwell_s:g} s of every pointing window), so its "
+        f"height at the dashed line is not the settled rate and can sit well above it. {more}</p>"
     )
-    if not ranking.deployable:
-        return how + "<p>(no ranked entries yet)</p>"
+
+
+def _final_error_profiles(ranking: Ranking, spec: BenchmarkSpec, missing: Sequence[str]) -> str:
+    """The pooled final-error profile of every ranked entry, for boards whose records predate the
+    ranked gate's profile (``missing``: the entries without one)."""
+    version = esc(spec.version)
+    ranked = ranking.ranked_classes
+    gate = spec.gates.settled_deg
+    unavailable = (
+        '<p class="note">The settled-gate profile is unavailable for '
+        f"{esc(', '.join(missing))}: their records were written before it was recorded, and the "
+        "per-episode errors it would be derived from are not stored. Drawn instead: the final-error "
+        "profile, which every record holds.</p>"
+    )
     gate_index = int(np.searchsorted(PROFILE_TAUS_DEG, gate))  # the first threshold >= the gate
     at_tau = float(PROFILE_TAUS_DEG[gate_index])
     lines, legend = [], []
@@ -654,10 +804,12 @@ def _profiles(ranking: Ranking, spec: BenchmarkSpec) -> str:
         width=820,
         height=380,
         gate_deg=gate,
-        caption=f"performance profiles of the ranked entries of {spec.version}, sealed draw",
+        caption=f"final-error profiles of the ranked entries of {spec.version}, sealed draw",
     )
     return (
-        how + f'<figure class="profile" id="{version}-profile-chart">{chart}<div>'
+        _profile_note(spec, False)
+        + unavailable
+        + f'<figure class="profile" id="{version}-profile-chart">{chart}<div>'
         f'<div class="legend-head"><span>rank, controller</span><span>≤ {at_tau:.3g}° at the end</span></div>'
         f'<ol class="legend">{"".join(legend)}</ol></div></figure>'
     )
@@ -717,6 +869,11 @@ def board_section(board: Leaderboard) -> str:
             "Diagnosis (sealed draw; false alarms on the actuator cells, detection on every cell; a "
             "controller that reports none never alarms and never detects)",
             _diagnosis_table(ranking, spec),
+        ),
+        (
+            "diagnosis-ranking",
+            "Diagnosis ranking (sealed draw; beside the settled ranking, not part of it)",
+            _diagnosis_ranking_table(ranking, spec),
         ),
         (
             "sensors",

@@ -23,8 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from scftc_cli.board.rounds import HEX64, commitment
 from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, GateStat
-from scftc_cli.scoring import wilson_interval
-from scftc_cli.spec import DEFAULT_BENCHMARK, GATES, get_spec
+from scftc_cli.scoring import settled_profile_taus, wilson_interval
+from scftc_cli.spec import DEFAULT_BENCHMARK, GATES, GateSpec, get_spec
 from scftc_cli.statistics import PROFILE_TAUS_DEG, design_effect, interval_by_fault
 from scftc_cli.submission.manifest import (
     MAX_AUTHOR_CHARS,
@@ -195,7 +195,14 @@ class Entry(BaseModel):
             if [c.key for c in results] != expected:
                 raise ValueError(f"{draw} cells must be exactly {[c.label for c in cells]}")
             for c in results:
-                check_cell(c, self.n_faults, self.n_seeds, f"{draw} {c.label}")
+                check_cell(c, self.n_faults, self.n_seeds, f"{draw} {c.label}", spec.gates)
+                if spec.diagnosis is not None and spec.diagnosis.detection == "faulted_unit":
+                    d = c.diagnosis
+                    if d is None or d.by_fault is None or len(d.by_fault.faulted) != self.n_faults:
+                        raise ValueError(
+                            f"{draw} {c.label}: the diagnosis must hold {self.n_faults} per-fault counts "
+                            "(the faulted_unit rule's)"
+                        )
         return self
 
     @property
@@ -218,11 +225,14 @@ def _by_fault(counts: tuple[int, ...], seeds: int) -> tuple[tuple[float, float],
     return interval_by_fault(array, seeds), design_effect(array, seeds)
 
 
-def check_cell(cell: CellResult, n_faults: int, n_seeds: int, where: str) -> None:
+def check_cell(
+    cell: CellResult, n_faults: int, n_seeds: int, where: str, gates: GateSpec | None = None
+) -> None:
     """Raise ``ValueError`` unless every gate's rate is ``k/n``, its interval is Wilson's, its
     per-fault counts add up to ``k`` (one count in ``0..n_seeds`` per fault) and its by-fault
     interval and design effect are the ones those counts give; and the final-error profile is
-    one non-decreasing count per threshold of ``PROFILE_TAUS_DEG``, ending at most at ``n``."""
+    one non-decreasing count per threshold of ``PROFILE_TAUS_DEG``, ending at most at ``n``.
+    With ``gates``, a ranked-gate profile, where the record holds one, must be ``check_settled_profile``'s."""
     n = n_faults * n_seeds
     if cell.n != n:
         raise ValueError(f"{where}: n = {cell.n}, but n_faults x n_seeds = {n}")
@@ -256,6 +266,46 @@ def check_cell(cell: CellResult, n_faults: int, n_seeds: int, where: str) -> Non
         raise ValueError(
             f"{where}: final_error_deg.profile must hold {len(PROFILE_TAUS_DEG)} non-decreasing counts"
         )
+    if gates is not None and cell.settled_profile is not None:
+        check_settled_profile(cell, gates, where)
+
+
+def check_settled_profile(cell: CellResult, gates: GateSpec, where: str) -> None:
+    """Raise ``ValueError`` unless the cell's ranked-gate profile holds one count per threshold of
+    ``settled_profile_taus(gates)``, at most ``n``, each band containing its rate, and reads the
+    settled and operational gates exactly: at their tolerances its count and by-fault interval are
+    the gate's own. (The bands elsewhere come from per-fault counts the record does not hold; a
+    re-flight checks them, ``board/verify.py``.) A record without a profile (written before it
+    existed) passes: nothing is derived for it."""
+    profile = cell.settled_profile
+    if profile is None:
+        return
+    taus = settled_profile_taus(gates)
+    if len(profile.k) != len(taus) or profile.k[-1] > cell.n:
+        raise ValueError(f"{where}: settled_profile must hold {len(taus)} counts of at most n = {cell.n}")
+    bands = profile.interval_by_fault
+    if bands is not None and not all(
+        low - 1e-12 <= k / cell.n <= high + 1e-12 for k, (low, high) in zip(profile.k, bands, strict=True)
+    ):
+        raise ValueError(f"{where}: a settled_profile band does not contain its rate")
+    for gate, tolerance in (("settled", gates.settled_deg), ("operational", gates.operational_deg)):
+        stat: GateStat = getattr(cell, gate)
+        i = int(np.searchsorted(taus, tolerance))
+        if profile.k[i] != stat.k:
+            raise ValueError(
+                f"{where}: settled_profile reads {profile.k[i]} at {tolerance:g} deg, {gate} k = {stat.k}"
+            )
+        if (
+            bands is not None
+            and stat.interval_by_fault is not None
+            and not all(
+                math.isclose(a, b, abs_tol=1e-9)
+                for a, b in zip(bands[i], stat.interval_by_fault, strict=True)
+            )
+        ):
+            raise ValueError(
+                f"{where}: settled_profile's band at {tolerance:g} deg is not {gate}'s interval_by_fault"
+            )
 
 
 EventAction = Literal[

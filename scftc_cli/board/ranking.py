@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from scftc_cli.board.diagnosis import DiagnosisStandings, rank_diagnosis
 from scftc_cli.board.models import TIE_ALPHA, Entry, Leaderboard
 from scftc_cli.records import CellResult
 from scftc_cli.scoring import wilson_interval
@@ -73,9 +74,11 @@ class PooledDiagnosis:
 
     ``false_alarm_rate`` is the quantity the version's false-alarm budget bounds: the fraction of
     healthy episodes (nominal ones, or flight before the onset) in which the entry raised an
-    alarm. Its interval is Wilson's over episodes: it treats each healthy stretch as an independent
-    trial, which the ten episodes of one fault need not be (the records keep no per-fault alarm
-    counts), so read it as a lower bound on the uncertainty."""
+    alarm. Where the cells record per-fault counts (the ``faulted_unit`` rule), ``false_alarm_strata``
+    holds each actuator cell's false-alarm episodes per fault and the interval is the by-fault one
+    (a cluster bootstrap over faults, stratified by cell). Without them it is Wilson's over
+    episodes: it treats each healthy stretch as an independent trial, which the episodes of one
+    fault need not be, so read it as a lower bound on the uncertainty."""
 
     faulted: int
     detected: int
@@ -86,6 +89,8 @@ class PooledDiagnosis:
     false_alarm_episodes: int
     healthy_hours: float
     false_alarms: int
+    false_alarm_strata: tuple[tuple[int, ...], ...] | None = None
+    seeds: int = 1
 
     @property
     def false_alarm_rate(self) -> float:
@@ -93,6 +98,9 @@ class PooledDiagnosis:
 
     @property
     def false_alarm_interval(self) -> tuple[float, float]:
+        strata = [np.array(s) for s in self.false_alarm_strata or () if s]
+        if strata:
+            return interval_by_fault(strata, self.seeds)
         return wilson_interval(self.false_alarm_episodes, self.healthy_episodes)
 
     @property
@@ -117,6 +125,16 @@ def pooled_diagnosis(cells: list[CellResult]) -> PooledDiagnosis | None:
     healthy = [c.diagnosis for c in cells if c.diagnosis is not None and c.sensor is None]
     if not stats:
         return None
+    counted = [(c.n, c.diagnosis.by_fault) for c in cells if c.diagnosis is not None and c.sensor is None]
+    strata, seeds = None, 1
+    if counted and all(b is not None for _, b in counted):
+        strata = tuple(
+            tuple(k for k, m in zip(b.false_alarm_episodes, b.healthy_episodes, strict=True) if m > 0)
+            for _, b in counted
+            if b is not None
+        )
+        n, first = counted[0]
+        seeds = n // len(first.faulted) if first is not None and first.faulted else 1
     return PooledDiagnosis(
         faulted=sum(s.faulted for s in stats),
         detected=sum(s.detected for s in stats),
@@ -127,6 +145,8 @@ def pooled_diagnosis(cells: list[CellResult]) -> PooledDiagnosis | None:
         false_alarm_episodes=sum(s.false_alarm_episodes for s in healthy),
         healthy_hours=sum(s.healthy_hours for s in healthy),
         false_alarms=sum(s.false_alarms for s in healthy),
+        false_alarm_strata=strata,
+        seeds=seeds,
     )
 
 
@@ -136,6 +156,20 @@ def pooled_profile_of(cells: list[CellResult], ranked_classes: Sequence[str]) ->
     fraction of episodes whose final error is within each threshold of ``PROFILE_TAUS_DEG``."""
     chosen = [c for c in cells if c.sensor is None and c.fault_class in ranked_classes]
     counts = np.array([c.final_error_deg.profile or [] for c in chosen])
+    return pooled_profile(counts, np.array([c.n for c in chosen]))
+
+
+def pooled_settled_profile_of(cells: list[CellResult], ranked_classes: Sequence[str]) -> np.ndarray | None:
+    """``(t,)`` the pooled profile of the ranked gate of an entry's cells over ``ranked_classes``
+    (their actuator cells, as ``pooled_settled`` pools them) on the version's grid
+    (``scoring.settled_profile_taus``): the fraction of their episodes whose largest error over the
+    final dwell of every pointing window is within each threshold; at the settled tolerance it is
+    ``pooled_settled``'s rate exactly. ``None`` where any of those cells holds no profile (a record
+    written before ``SettledProfile`` existed)."""
+    chosen = [c for c in cells if c.sensor is None and c.fault_class in ranked_classes]
+    if not chosen or any(c.settled_profile is None for c in chosen):
+        return None
+    counts = np.array([c.settled_profile.k for c in chosen if c.settled_profile is not None])
     return pooled_profile(counts, np.array([c.n for c in chosen]))
 
 
@@ -205,7 +239,9 @@ def _single(cell: CellResult) -> Pooled:
 @dataclass(frozen=True)
 class Ranking:
     """Sealed entries ranked (``deployable``) and apart (``upper_bounds``); ``pending`` entries
-    (public draw only, their round not yet sealed) and ``failed`` ones are listed, never ranked."""
+    (public draw only, their round not yet sealed) and ``failed`` ones are listed, never ranked.
+    ``diagnosis``: the deployable entries' diagnosis ranking, beside this one, on a version that
+    ranks it (``board/diagnosis.py``)."""
 
     deployable: list[Ranked]
     upper_bounds: list[Ranked]
@@ -213,6 +249,7 @@ class Ranking:
     ranked_classes: tuple[str, ...]
     pending: list[Entry] = field(default_factory=list)
     failed: list[Entry] = field(default_factory=list)
+    diagnosis: DiagnosisStandings | None = None
 
 
 def rank_board(board: Leaderboard) -> Ranking:
@@ -254,4 +291,9 @@ def rank_board(board: Leaderboard) -> Ranking:
         key=lambda e: (-pooled_settled(e.public, classes).k, e.name),
     )
     failed = [e for e in board.entries if e.status == "failed"]
-    return Ranking(out, oracles, board.ranking, classes, pending, failed)
+    standings = None
+    if spec.diagnosis is not None and spec.diagnosis.ranked:
+        standings = rank_diagnosis(
+            [(r.entry.name, r.entry.sealed) for r in out], classes, spec.diagnosis.false_alarm_budget
+        )
+    return Ranking(out, oracles, board.ranking, classes, pending, failed, standings)

@@ -8,6 +8,7 @@ import io
 import json
 from typing import Any
 
+from scftc_cli.board.diagnosis import DiagnosisRanked, DiagnosisStandings, Share
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard
 from scftc_cli.board.ranking import (
     FLAG_ALPHA,
@@ -71,6 +72,13 @@ DIAGNOSIS_READING = (
 )
 """How to read ``DIAGNOSIS_HEADERS`` (the board's diagnosis table and the study's ``diagnosis.md``)."""
 
+FAULTED_UNIT_READING = (
+    "Under this version's rule (docs/diagnosis.md) only a report at or after the onset that names a unit "
+    "the fault left not healthy detects it, and the false-alarm interval is the by-fault one (a cluster "
+    "bootstrap over faults) in place of Wilson's."
+)
+"""What the ``faulted_unit`` rule changes in ``DIAGNOSIS_READING``."""
+
 
 def diagnosis_cells(d: PooledDiagnosis) -> list[str]:
     """One entry's ``DIAGNOSIS_HEADERS`` cells."""
@@ -92,14 +100,14 @@ def diagnosis_cells(d: PooledDiagnosis) -> list[str]:
     ]
 
 
-def diagnosis_lines(ranking: Ranking, budget: float) -> list[str]:
+def diagnosis_lines(ranking: Ranking, budget: float, faulted_unit: bool = False) -> list[str]:
     """The diagnosis table (versions that score one): every sealed entry, pooled over its sealed
-    cells, beside its ranked settled rate."""
+    cells, beside its ranked settled rate; ``faulted_unit``: the version scores under that rule."""
     out = [
         "",
         f"## Diagnosis (sealed draw; false-alarm budget {100 * budget:g} % of healthy episodes)",
         "",
-        DIAGNOSIS_READING,
+        DIAGNOSIS_READING + (" " + FAULTED_UNIT_READING if faulted_unit else ""),
         "",
     ]
     headers = ["controller", "sealed settled (ranked)", *DIAGNOSIS_HEADERS, "over budget"]
@@ -114,6 +122,112 @@ def diagnosis_lines(ranking: Ranking, budget: float) -> list[str]:
         if r.diagnosis is not None
     ]
     return out + (markdown_lines(headers, rows) if rows else ["(no entries yet)"])
+
+
+DIAGNOSIS_RANKING_HEADERS = (
+    "rank",
+    "controller",
+    "isolated / faulted (%)",
+    "right severity (%)",
+    "mean delay (s)",
+    "detected (%)",
+    "false-alarm episodes / healthy (%)",
+    "false-isolation episodes / all (%)",
+    "not ranked because",
+)
+
+
+def share_text(s: Share, digits: int = 1) -> str:
+    """``93 / 100: 93.0 [86.3, 96.6] {84.0, 98.0}``: a pooled share with its Wilson interval in
+    brackets and its by-fault interval in braces."""
+    low, high = s.interval
+    by_low, by_high = s.interval_by_fault
+    return (
+        f"{s.k} / {s.n}: {100 * s.rate:.{digits}f} [{100 * low:.{digits}f}, {100 * high:.{digits}f}] "
+        f"{{{100 * by_low:.{digits}f}, {100 * by_high:.{digits}f}}}"
+    )
+
+
+def diagnosis_ranking_cells(r: DiagnosisRanked) -> list[str]:
+    """One listed entry's ``DIAGNOSIS_RANKING_HEADERS`` cells, the name as plain text."""
+    p = r.pool
+    delay = p.mean_delay_s
+    return [
+        "-" if r.rank is None else f"{r.rank}{'=' if r.tied else ''}",
+        r.name,
+        share_text(p.isolated),
+        f"{100 * p.severity_right.rate:.1f}",
+        "-" if delay is None else f"{delay:.0f}",
+        f"{100 * p.detected.rate:.1f}",
+        share_text(p.false_alarms, 2),
+        f"{p.false_isolation_episodes} / {p.episodes}: {100 * p.false_isolation_rate:.1f}",
+        r.reason,
+    ]
+
+
+def diagnosis_ranking_lines(standings: DiagnosisStandings) -> list[str]:
+    """The diagnosis ranking (versions that rank it): ranked entries in tie groups, then those over
+    the false-alarm budget, unranked, with the reason; the silent ones named below."""
+    out = [
+        "",
+        "## Diagnosis ranking (sealed draw; beside the settled ranking, not part of it)",
+        "",
+        f"**Rule:** {standings.rule}. Shares in %, Wilson 95 % interval in brackets, by-fault 95 % "
+        "interval in braces (docs/diagnosis.md).",
+        "",
+    ]
+    rows = []
+    for r in [*standings.ranked, *standings.unranked]:
+        cells = diagnosis_ranking_cells(r)
+        cells[1] = f"`{cells[1]}`"
+        rows.append(cells)
+    out += (
+        markdown_lines(list(DIAGNOSIS_RANKING_HEADERS), rows) if rows else ["(no entry reports a diagnosis)"]
+    )
+    if standings.silent:
+        out += [
+            "",
+            "Not listed (they report no diagnosis): " + ", ".join(f"`{n}`" for n in standings.silent) + ".",
+        ]
+    return out
+
+
+def diagnosis_standings_json(standings: DiagnosisStandings) -> dict:
+    """The diagnosis ranking as a JSON object (``board_json``'s ``standings.diagnosis``)."""
+
+    def share(s: Share) -> dict:
+        return {
+            "k": s.k,
+            "n": s.n,
+            "rate": s.rate,
+            "ci_low": s.interval[0],
+            "ci_high": s.interval[1],
+            "interval_by_fault": list(s.interval_by_fault),
+        }
+
+    def row(r: DiagnosisRanked) -> dict:
+        p = r.pool
+        return {
+            "rank": r.rank,
+            "tied": r.tied,
+            "name": r.name,
+            "isolated": share(p.isolated),
+            "severity_right": share(p.severity_right),
+            "detected": share(p.detected),
+            "mean_delay_s": p.mean_delay_s,
+            "false_alarm_episodes": share(p.false_alarms),
+            "false_isolation_episodes": p.false_isolation_episodes,
+            "episodes": p.episodes,
+            "reason": r.reason,
+        }
+
+    return {
+        "rule": standings.rule,
+        "false_alarm_budget": standings.budget,
+        "ranked": [row(r) for r in standings.ranked],
+        "unranked": [row(r) for r in standings.unranked],
+        "not_listed": standings.silent,
+    }
 
 
 def kind_text(e: Entry) -> str:
@@ -183,7 +297,11 @@ def board_markdown(board: Leaderboard) -> str:
         rows.append([label, *(pct(sensors[s].settled) for s in spec.sensor_faults)])
     out += markdown_lines(headers, rows) if rows else ["(no entries yet)"]
     if spec.diagnosis is not None:
-        out += diagnosis_lines(ranking, spec.diagnosis.false_alarm_budget)
+        out += diagnosis_lines(
+            ranking, spec.diagnosis.false_alarm_budget, spec.diagnosis.detection == "faulted_unit"
+        )
+    if ranking.diagnosis is not None:
+        out += diagnosis_ranking_lines(ranking.diagnosis)
     out += _pending_and_failed(board, ranking, spec.fault_classes)
     flagged = [r for r in ranking.deployable if r.flagged or r.over_budget]
     if flagged:
@@ -312,7 +430,11 @@ def _ranked_json(r: Ranked) -> dict:
             if r.diagnosis is None
             else {
                 "diagnosis": {
-                    **dataclasses.asdict(r.diagnosis),
+                    **{
+                        name: value
+                        for name, value in dataclasses.asdict(r.diagnosis).items()
+                        if name not in ("false_alarm_strata", "seeds")  # what the interval is made of
+                    },
                     "false_alarm_rate": r.diagnosis.false_alarm_rate,
                     "false_alarm_interval": list(r.diagnosis.false_alarm_interval),
                     "false_alarms_per_hour": r.diagnosis.false_alarms_per_hour,
@@ -343,6 +465,8 @@ def board_json(board: Leaderboard) -> str:
         ],
         "failed": [{"name": e.name, "round": e.round, "failure": e.failure} for e in ranking.failed],
     }
+    if ranking.diagnosis is not None:
+        doc["standings"]["diagnosis"] = diagnosis_standings_json(ranking.diagnosis)
     return json.dumps(doc, indent=2)
 
 
@@ -350,11 +474,21 @@ def board_csv(board: Leaderboard) -> str:
     """Long format, in rank order (deployable entries, then oracles): one row per entry, draw and
     cell, every gate's k, rate and interval."""
     ranking = rank_board(board)
-    diagnosed = get_spec(board.benchmark_version).diagnosis is not None
+    rule = get_spec(board.benchmark_version).diagnosis
+    diagnosed = rule is not None
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     gate_cols = [f"{g}_{x}" for g in GATES for x in ("k", "rate", "ci_low", "ci_high")]
-    diagnosis_cols = list(DiagnosisStats.model_fields) if diagnosed else []
+    recorded = ("reported", "false_isolation_episodes")  # the faulted_unit rule's (by_fault: not a column)
+    diagnosis_cols = (
+        []
+        if rule is None
+        else [
+            name
+            for name in DiagnosisStats.model_fields
+            if name != "by_fault" and (name not in recorded or rule.detection == "faulted_unit")
+        ]
+    )
     writer.writerow(
         [
             "rank",

@@ -52,6 +52,10 @@ class Line:
         key: what ties the line to its legend item (``data-key``; the entry's name).
         label: the tooltip text.
         width: stroke width in px (a pooled line over per-class ones is drawn thicker).
+        band: ``[low, high]`` fractions at each ``taus[i]``, drawn as a translucent area behind the
+            line (``polygon.band``; the by-fault 95 % interval), if given.
+        at_gate: ``(low, high)`` fractions drawn as a bar across the settled gate's marker
+            (``line.gate-interval``): the interval of the line's value there, if given.
     """
 
     key: str
@@ -60,6 +64,8 @@ class Line:
     colour: str
     dash: str = ""
     width: float = 2.0
+    band: Sequence[Sequence[float]] | None = None
+    at_gate: tuple[float, float] | None = None
 
 
 def style_of(index: int) -> tuple[str, str]:
@@ -89,10 +95,12 @@ def profile_chart(
     gate_deg: float | None = None,
     caption: str = "",
     compact: bool = False,
+    x_title: str = "final pointing error τ (deg, log scale)",
 ) -> str:
-    """An ``<svg>`` of performance profiles: the fraction of episodes whose final error is <= tau,
-    over tau on a log axis, one polyline per ``lines`` item (``polyline.series``, with a
-    ``<title>`` tooltip), a dashed marker at the settled gate ``gate_deg`` if given.
+    """An ``<svg>`` of performance profiles: the fraction of episodes whose error (``x_title``
+    says which) is <= tau, over tau on a log axis, one polyline per ``lines`` item
+    (``polyline.series``, with a ``<title>`` tooltip) over its band where it has one, a dashed
+    marker at the settled gate ``gate_deg`` if given (with each line's ``at_gate`` bar on it).
 
     ``compact`` draws the small version for an entry's details (fewer labels, no axis titles).
     """
@@ -149,13 +157,29 @@ def profile_chart(
     if not compact:
         out.append(
             f'<text class="axis-title" x="{left + plot_w / 2:.1f}" y="{height - 8}" text-anchor="middle">'
-            "final pointing error τ (deg, log scale)</text>"
+            f"{_esc(x_title)}</text>"
         )
         out.append(
             f'<text class="axis-title" transform="translate(14 {top + plot_h / 2:.1f}) rotate(-90)" '
             'text-anchor="middle">episodes with error ≤ τ</text>'
         )
     for line in lines:
+        if line.band is not None:
+            lows = [f"{x(t):.2f},{y(b[0]):.2f}" for t, b in zip(taus, line.band, strict=True)]
+            highs = [f"{x(t):.2f},{y(b[1]):.2f}" for t, b in zip(taus, line.band, strict=True)]
+            out.append(
+                f'<polygon class="band" data-key="{_esc(line.key)}" points="{" ".join(lows + highs[::-1])}" '
+                f'fill="{line.colour}" fill-opacity="0.15" stroke="none"/>'
+            )
+    for line in lines:
+        if line.at_gate is not None and gate_deg is not None:
+            gx, (low, high) = x(gate_deg), line.at_gate
+            out.append(
+                f'<line class="gate-interval" data-key="{_esc(line.key)}" x1="{gx:.2f}" x2="{gx:.2f}" '
+                f'y1="{y(low):.2f}" y2="{y(high):.2f}" stroke="{line.colour}" stroke-width="5" '
+                f'stroke-opacity="0.5"><title>{_esc(line.label)}: by-fault 95 % interval at the gate, '
+                f"{100 * low:.1f} to {100 * high:.1f} %</title></line>"
+            )
         points = " ".join(f"{x(t):.2f},{y(v):.2f}" for t, v in zip(taus, line.values, strict=True))
         dash = f' stroke-dasharray="{line.dash}"' if line.dash else ""
         out.append(

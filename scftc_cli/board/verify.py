@@ -200,7 +200,8 @@ def settled_drift(board: CellResult, rerun: CellResult) -> str:
 
 def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]:
     """Differences between the board's cells and a re-run: counts (per cell, per fault, per
-    profile threshold) exactly, errors to 1e-6. A settled count that differs says whether rounding
+    profile threshold; the ranked gate's profile where the board's record holds one) exactly, its
+    by-fault band to 1e-9, errors to 1e-6. A settled count that differs says whether rounding
     at the gate's edge can explain it (``settled_drift``)."""
     diffs = []
     for b, r in zip(board, rerun, strict=True):
@@ -217,11 +218,28 @@ def compare_cells(board: list[CellResult], rerun: list[CellResult]) -> list[str]
                 diffs.append(f"{label} {gate} per-fault counts differ from the re-run's{why}")
         if b.final_error_deg.profile != r.final_error_deg.profile:
             diffs.append(f"{label} final-error profile differs from the re-run's")
+        # a record older than the ranked gate's profile holds none: nothing to compare, nothing moves
+        if b.settled_profile is not None and r.settled_profile is not None:
+            if b.settled_profile.k != r.settled_profile.k:
+                diffs.append(f"{label} settled profile differs from the re-run's")
+            elif not _bands_match(b.settled_profile.interval_by_fault, r.settled_profile.interval_by_fault):
+                diffs.append(f"{label} settled profile's by-fault band differs from the re-run's")
         for stat in ("median", "mean"):
             vb, vr = getattr(b.final_error_deg, stat), getattr(r.final_error_deg, stat)
             if not math.isclose(vb, vr, rel_tol=1e-6, abs_tol=1e-9):
                 diffs.append(f"{label} final error {stat} {vb:.6g} deg on the board, {vr:.6g} re-run")
     return diffs
+
+
+def _bands_match(board: list | None, rerun: list | None) -> bool:
+    """Whether two ranked-gate profile bands agree (to 1e-9; a missing one agrees with anything)."""
+    if board is None or rerun is None:
+        return True
+    return len(board) == len(rerun) and all(
+        math.isclose(x, y, abs_tol=1e-9)
+        for pb, pr in zip(board, rerun, strict=True)
+        for x, y in zip(pb, pr, strict=True)
+    )
 
 
 def toolchain_drift(board: Leaderboard, running: Mapping[str, str]) -> str | None:

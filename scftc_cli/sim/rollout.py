@@ -17,6 +17,7 @@ from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.sim.episodes import Episodes, take_rows
 from scftc_cli.sim.mrp import angle_deg_from_norm2, largest_norm2_within, principal_angle_deg
 from scftc_cli.sim.testbed import Plant, Testbed, testbed
+from scftc_cli.spec import DiagnosisSpec
 
 
 @dataclass(frozen=True)
@@ -26,16 +27,24 @@ class HealthTrace:
     Attributes:
         first_alarm_step: ``(n,)`` the first step after which any unit was reported not healthy
             (-1: never).
-        first_alarm_after_onset: ``(n,)`` the first such step at or after the onset (-1: never).
+        first_alarm_after_onset: ``(n,)`` the first step at or after the onset that detects the
+            fault (-1: never): under the ``any_alarm`` rule any alarm, under ``faulted_unit`` one
+            that names a unit the truth holds not healthy (``DiagnosisSpec.detection``).
         false_alarms: ``(n,)`` alarms raised before the onset: steps whose report turns from all
             healthy to not (rising edges), so one long alarm counts once.
         final_codes: ``(n, units)`` the last report.
+        false_isolation: ``(n,)`` bool, some report (at any step) named a unit the truth holds
+            healthy; ``None`` under the ``any_alarm`` rule, which does not look.
+        reported: whether ``Controller.health`` returned codes at any step of the batch (``False``:
+            it only ever said ``None``, scored as all healthy).
     """
 
     first_alarm_step: np.ndarray
     first_alarm_after_onset: np.ndarray
     false_alarms: np.ndarray
     final_codes: np.ndarray
+    false_isolation: np.ndarray | None = None
+    reported: bool = True
 
 
 @dataclass(frozen=True)
@@ -127,6 +136,7 @@ def rollout(
     progress: Progress = NO_PROGRESS,
     plant: Plant | None = None,
     trace_rows: Sequence[int] = (),
+    diagnosis: DiagnosisSpec | None = None,
 ) -> Rollout:
     """Fly ``controller`` through every episode of ``episodes`` at once.
 
@@ -139,6 +149,8 @@ def rollout(
         progress: advanced by one after each step.
         trace_rows: episodes whose error curve to keep (``Rollout.traces``) without recording
             the whole batch.
+        diagnosis: the diagnosis rule to accumulate the health reports under (default the
+            version's ``spec.diagnosis``; nothing is accumulated on a version without one).
     """
     bed = testbed(episodes.benchmark)
     spec = bed.spec
@@ -157,7 +169,7 @@ def rollout(
     window_max = np.zeros((n, len(ends)))
     min_norm2 = np.full(n, np.inf)
     last_outside = np.full(n, last_start - 1)  # last step whose error exceeded the settled tolerance
-    diagnosis = _HealthAccumulator.start(bed, episodes, controller, n)
+    health = _HealthAccumulator.start(bed, episodes, diagnosis or spec.diagnosis)
     if record:
         errors, commands = np.empty((n, steps)), np.empty((n, steps, spec.action_dim))
         history = {name: np.empty((n, steps + 1, value.shape[1])) for name, value in plant.states().items()}
@@ -171,8 +183,8 @@ def rollout(
     for k in range(steps):
         obs = sensors.observe(k, plant)
         command = np.clip(validate_commands(controller.act(obs), n, spec.action_dim), -1.0, 1.0)
-        if diagnosis is not None:
-            diagnosis.add(k, controller)
+        if health is not None:
+            health.add(k, controller)
         sigma_norm2 = plant.step(k, command)
         np.minimum(min_norm2, sigma_norm2, out=min_norm2)
         if k >= last_start:
@@ -195,7 +207,7 @@ def rollout(
         angle_deg_from_norm2(min_norm2),
         settling,
         angle_deg_from_norm2(window_max) if len(ends) > 1 else None,
-        diagnosis.trace() if diagnosis is not None else None,
+        health.trace() if health is not None else None,
     )
     traces = {int(row): curve for row, curve in zip(traced, curves, strict=True)}
     if not record:
@@ -212,12 +224,13 @@ def rollout_parts(
     progress: Progress = NO_PROGRESS,
     step_weight: float | None = None,
     trace_first: bool = False,
+    diagnosis: DiagnosisSpec | None = None,
 ) -> list[Rollout]:
     """``rollout`` of several batches of one version as one batch (``Episodes.concat``), cut back
     into one ``Rollout`` per batch: equal to flying each alone for a controller whose rows are
     independent (every built-in). ``progress`` is advanced by ``step_weight`` a step, by default
     ``len(parts)``: a step of the stack is a step of each batch. ``trace_first``: keep each
-    batch's first episode's error curve (``Rollout.traces[0]``)."""
+    batch's first episode's error curve (``Rollout.traces[0]``). ``diagnosis``: as ``rollout``'s."""
     episodes = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
     weight = float(len(parts)) if step_weight is None else step_weight
     rows = part_rows(parts)
@@ -228,6 +241,7 @@ def rollout_parts(
         record=record,
         progress=_Scaled(progress, weight),
         trace_rows=[r.start for r in rows] if trace_first else (),
+        diagnosis=diagnosis,
     )
     return [flown.subset(r) for r in rows]
 
@@ -253,7 +267,12 @@ class _Scaled(Progress):
 
 @dataclass
 class _HealthAccumulator:
-    """Gathers a controller's health reports step by step (``HealthTrace``)."""
+    """Gathers a controller's health reports step by step (``HealthTrace``).
+
+    ``faulty`` is ``(n, units)`` bool, the units the truth holds not healthy from the onset on,
+    under the ``faulted_unit`` rule (``None`` under ``any_alarm``): each step then costs two masked
+    ``any`` over ``(n, units)`` more.
+    """
 
     onset: np.ndarray
     units: int
@@ -262,17 +281,24 @@ class _HealthAccumulator:
     false_alarms: np.ndarray
     alarmed: np.ndarray
     codes: np.ndarray
+    faulty: np.ndarray | None = None
+    false_isolation: np.ndarray | None = None
+    reported: bool = False
 
     @classmethod
-    def start(
-        cls, bed: Testbed, episodes: Episodes, controller: Controller, n: int
-    ) -> _HealthAccumulator | None:
-        """An accumulator where the version scores a diagnosis (``None`` elsewhere)."""
-        if bed.spec.diagnosis is None:
+    def start(cls, bed: Testbed, episodes: Episodes, rule: DiagnosisSpec | None) -> _HealthAccumulator | None:
+        """An accumulator where the version scores a diagnosis (``None`` elsewhere), under ``rule``."""
+        if bed.spec.diagnosis is None or rule is None:
             return None
-        units = len(bed.spec.diagnosis.units)
-        onset = bed.diagnosis_truth(episodes).onset_step
+        truth = bed.diagnosis_truth(episodes)
+        return cls.new(truth.onset_step, truth.codes, rule.detection)
+
+    @classmethod
+    def new(cls, onset: np.ndarray, truth_codes: np.ndarray, detection: str) -> _HealthAccumulator:
+        """An empty accumulator for episodes with these onsets ``(n,)`` and true codes ``(n, units)``."""
+        n, units = truth_codes.shape
         minus = lambda: np.full(n, -1)  # noqa: E731
+        faulty = truth_codes > 0 if detection == "faulted_unit" else None
         return cls(
             onset,
             units,
@@ -281,6 +307,8 @@ class _HealthAccumulator:
             np.zeros(n, dtype=int),
             np.zeros(n, bool),
             np.zeros((n, units), int),
+            faulty,
+            None if faulty is None else np.zeros(n, bool),
         )
 
     def add(self, k: int, controller: Controller) -> None:
@@ -290,11 +318,49 @@ class _HealthAccumulator:
             self.codes[:] = 0
         else:
             self.codes = validate_health(codes, len(self.onset), self.units).astype(int)
+            self.reported = True
         alarm: np.ndarray = np.any(self.codes, axis=1)
         np.copyto(self.first, k, where=alarm & (self.first < 0))
-        np.copyto(self.first_after, k, where=alarm & (self.first_after < 0) & (k >= self.onset))
+        detects = alarm
+        if self.faulty is not None and self.false_isolation is not None:
+            named = self.codes > 0
+            detects = np.any(named & self.faulty, axis=1)
+            self.false_isolation |= np.any(named & ~self.faulty, axis=1)
+        np.copyto(self.first_after, k, where=detects & (self.first_after < 0) & (k >= self.onset))
         self.false_alarms += alarm & ~self.alarmed & (k < self.onset)
         self.alarmed = alarm
 
     def trace(self) -> HealthTrace:
-        return HealthTrace(self.first, self.first_after, self.false_alarms, self.codes.copy())
+        isolation = None if self.false_isolation is None else self.false_isolation.copy()
+        return HealthTrace(
+            self.first, self.first_after, self.false_alarms, self.codes.copy(), isolation, self.reported
+        )
+
+
+class _Reports:
+    """Replays a stack of health reports as a controller's ``health()`` (``health_trace``)."""
+
+    def __init__(self, reports: Sequence[np.ndarray | None]) -> None:
+        self.reports, self.k = reports, -1
+
+    def health(self) -> np.ndarray | None:
+        return self.reports[self.k]
+
+
+def health_trace(
+    reports: Sequence[np.ndarray | None], onset_step: np.ndarray, truth_codes: np.ndarray, detection: str
+) -> HealthTrace:
+    """What a rollout accumulates from a whole history of health reports at once, under rule
+    ``detection`` (``DiagnosisSpec.detection``): the rule on plain arrays, without flying.
+
+    Args:
+        reports: one per step, each ``(n, units)`` codes 0, 1, 2 or ``None`` (nothing reported).
+        onset_step: ``(n,)`` each episode's first faulty step.
+        truth_codes: ``(n, units)`` the truth from the onset on (``DiagnosisTruth.codes``).
+    """
+    health = _HealthAccumulator.new(np.asarray(onset_step), np.asarray(truth_codes), detection)
+    replay = _Reports(reports)
+    for k in range(len(reports)):
+        replay.k = k
+        health.add(k, replay)  # type: ignore[arg-type]
+    return health.trace()

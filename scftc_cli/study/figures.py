@@ -25,7 +25,13 @@ from matplotlib.patches import Patch
 from scftc_cli.records import EpisodeOutcomes, EvalResult, GateStat
 from scftc_cli.scoring import wilson_interval
 from scftc_cli.spec import BenchmarkSpec
-from scftc_cli.statistics import PROFILE_TAUS_DEG, performance_profile
+from scftc_cli.statistics import (
+    PROFILE_TAUS_DEG,
+    profile_by_fault,
+    profile_counts,
+    profile_intervals,
+    with_thresholds,
+)
 from scftc_cli.study.run import (
     Detection,
     Study,
@@ -610,35 +616,47 @@ def _line_style(privileged: bool) -> dict:
     return {"linestyle": "--", "linewidth": 1.5} if privileged else {"linestyle": "-", "linewidth": 1.3}
 
 
-def final_error_profile(
+def settled_profile(
     spec: BenchmarkSpec,
     outcomes: Mapping[str, Mapping[str, EpisodeOutcomes]],
     columns: Sequence[str],
     privileged: Mapping[str, bool],
     colors: dict[str, tuple] | None = None,
 ) -> Figure:
-    """Per class (panels), the performance profile of the final pointing error: the fraction of
-    the cell's episodes whose final true error is <= tau, against tau on a log scale from 0.01 to
-    180 deg (``statistics.performance_profile`` on ``PROFILE_TAUS_DEG`` refined); the settled and
-    operational thresholds marked.
+    """Per class (panels), the performance profile of the ranked gate: the fraction of the cell's
+    episodes whose largest true error over the final dwell of every pointing window is <= tau (the
+    settled rate had the tolerance been tau), against tau on a log scale from 0.01 to 180 deg
+    (``statistics.profile_counts`` of ``EpisodeOutcomes.dwell_max_error_deg`` on
+    ``PROFILE_TAUS_DEG`` refined, with the settled and operational tolerances on the grid), each
+    over its by-fault 95 % band (``statistics.profile_intervals``, where the episodes' faults are
+    known). At the settled tolerance (marked) each line is exactly the cell's settled rate.
 
     Args:
         outcomes: controller -> column (class or sensor fault) -> per-episode outcomes
             (``study.run.cell_outcomes``).
     """
     colors = colors or _colors(list(outcomes))
-    taus = np.geomspace(PROFILE_TAUS_DEG[0], PROFILE_TAUS_DEG[-1], 200)
+    taus = with_thresholds(
+        np.geomspace(PROFILE_TAUS_DEG[0], PROFILE_TAUS_DEG[-1], 200),
+        (spec.gates.settled_deg, spec.gates.operational_deg),
+    )
     fig, axes = _panel_grid(list(columns))
     for ax, column in zip(axes.flat, columns, strict=False):
         for name, cells in outcomes.items():
-            if column in cells:
-                ax.plot(
-                    taus,
-                    100 * performance_profile(cells[column].final_error_deg, taus),
-                    color=colors[name],
-                    label=_label(name, privileged.get(name, False)),
-                    **_line_style(privileged.get(name, False)),
-                )
+            if column not in cells:
+                continue
+            o = cells[column]
+            if o.fault_index is not None:
+                counts, seeds = profile_by_fault(o.dwell_max_error_deg, o.fault_index, taus)
+                band = 100 * profile_intervals(counts, seeds)
+                ax.fill_between(taus, band[:, 0], band[:, 1], color=colors[name], alpha=0.12, linewidth=0)
+            ax.plot(
+                taus,
+                100 * profile_counts(o.dwell_max_error_deg, taus) / o.n,
+                color=colors[name],
+                label=_label(name, privileged.get(name, False)),
+                **_line_style(privileged.get(name, False)),
+            )
         ax.axvline(spec.gates.settled_deg, color="red", linestyle=":", linewidth=1.0)
         ax.axvline(spec.gates.operational_deg, color="grey", linestyle=":", linewidth=1.0)
         ax.set_xscale("log")
@@ -651,11 +669,12 @@ def final_error_profile(
         ax.set_title(column, fontsize=10)
         ax.grid(alpha=0.3, linewidth=0.4)
     for ax in axes[-1]:
-        ax.set_xlabel("tau (deg, log)")
+        ax.set_xlabel("tau: largest error over every window's final dwell (deg, log)")
     for ax in axes[:, 0]:
-        ax.set_ylabel("episodes with final error <= tau (%)")
+        ax.set_ylabel("episodes settled within tau (%)")
     handles, labels = axes.flat[0].get_legend_handles_labels()
     handles += [
+        Patch(color="grey", alpha=0.25, label="by-fault 95 % band"),
         plt.Line2D([], [], color="red", linestyle=":", label=f"settled gate {spec.gates.settled_deg:g} deg"),
         plt.Line2D(
             [], [], color="grey", linestyle=":", label=f"operational gate {spec.gates.operational_deg:g} deg"
@@ -663,7 +682,8 @@ def final_error_profile(
     ]
     fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 0.95), fontsize=8, title="controller")
     fig.suptitle(
-        "Performance profile of the final true pointing error, held-out split (dashed: privileged oracle)",
+        "Performance profile of the settled gate (largest true error over every window's final "
+        f"{spec.gates.dwell_steps * spec.dt_s:g} s), held-out split (dashed: privileged oracle)",
         fontsize=11,
     )
     fig.tight_layout()
@@ -778,7 +798,7 @@ FIGURES = (
     "settled_vs_touch",
     "trajectories",
     "sensor_faults",
-    "final_error_profile",
+    "settled_profile",
     "settling_time",
 )
 
@@ -830,9 +850,9 @@ def draw(study: Study, stem: str) -> Figure:
     if stem == "sensor_faults":
         sensor = study.sensor
         return sensor_faults(study.spec, sensor.results, sensor.regimes, sensor_final_errors(study), colors)
-    if stem in ("final_error_profile", "settling_time"):
+    if stem in ("settled_profile", "settling_time"):
         outcomes, columns = cell_outcomes(study), outcome_columns(study, flown_by_all=True)
-        plot = final_error_profile if stem == "final_error_profile" else settling_time
+        plot = settled_profile if stem == "settled_profile" else settling_time
         return plot(study.spec, outcomes, columns, privileged, colors)
     if stem == "settled_vs_onset":
         return settled_vs_onset(study.spec, onset_outcomes(study), privileged, colors)

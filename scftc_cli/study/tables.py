@@ -329,14 +329,17 @@ def gate_sensitivity_markdown(study: Study) -> str:
 
 def final_error_profile_markdown(study: Study) -> str:
     """The performance profile of the final pointing error: per class and controller, the share of
-    episodes whose final error is <= tau at a few thresholds (the figure draws the whole curve)."""
+    episodes whose final error is <= tau at a few thresholds. Not the ranked gate's profile (the
+    figure ``settled_profile`` draws that one, equal to the settled rate at the settled tolerance)."""
     head = _outcome_head(
         study,
         "Performance profile of the final pointing error",
         "Each entry: % of the cell's episodes whose true pointing error after the last step is <= tau "
         "(rliable's performance profile, with error <= tau for score > tau). Unlike the settled gate it "
-        "looks at one instant, not a window, and shows how far off the episodes that fail end up: a "
-        "controller that parks at 0.3 deg and one that tumbles at 120 deg both settle 0 %.",
+        "looks at one instant, not the final dwell of every window, so its 0.2 deg column is not the settled "
+        "rate and can be far above it (settled_profile.png draws the ranked gate's profile); it shows how "
+        "far off the episodes that fail end up: a controller that parks at 0.3 deg and one that tumbles at "
+        "120 deg both settle 0 %.",
         "final_error_profile",
     )
     taus = np.array(PROFILE_TABLE_TAUS_DEG)
