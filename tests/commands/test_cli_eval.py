@@ -49,6 +49,7 @@ def test_json_output_has_the_contract_fields():
         "operational",
         "touch_once",
         "final_error_deg",
+        "settled_profile",
     }
     assert (cell["split"], cell["class"], cell["sensor"], cell["n"]) == ("test", "gain_bias", None, 4)
     for gate in ("settled", "operational", "touch_once"):
