@@ -6,6 +6,7 @@ from __future__ import annotations
 import typer
 
 from scftc_cli import __version__
+from scftc_cli.commands.admission import admission_command
 from scftc_cli.commands.compare import compare_command
 from scftc_cli.commands.crosscheck import crosscheck_command
 from scftc_cli.commands.eval import eval_command
@@ -48,6 +49,7 @@ app.command("list")(list_command)
 app.command("compare")(compare_command)
 app.command("train")(train_command)
 app.command("crosscheck")(crosscheck_command)
+app.command("admission")(admission_command)
 app.command("reproduce")(reproduce_command)
 app.command("submit")(submit_command)
 app.add_typer(leaderboard_app, name="leaderboard")

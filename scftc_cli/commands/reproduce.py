@@ -57,12 +57,21 @@ def reproduce_command(
     detector also fdir_detection.md (its delay and false alarms on the held-out cells). No training:
     uses the committed artifacts."""
     from scftc_cli.distributed.runner import cluster
+    from scftc_cli.errors import UsageError
     from scftc_cli.records import episode_rows, write_episode_log
     from scftc_cli.spec import get_spec
     from scftc_cli.study.run import planned_steps, run_study
     from scftc_cli.study.tables import write_tables
+    from scftc_cli.versions import get_version
 
     spec = get_spec(benchmark)
+    version = get_version(spec.version)
+    if version.draft:
+        raise UsageError(
+            f"{spec.version} is a draft: its battery is not frozen, so its held-out split stays unflown by "
+            f"deployable controllers ({version.definition[0]}); `scftc admission --benchmark {spec.version}` "
+            "measures its train split"
+        )
     out = Path("results") / spec.version if out is None else out
     check_output(out, "--out", folder=True)
     if log_episodes is not None:

@@ -89,6 +89,12 @@ class TuneSpec:
     per_episode_params: bool = False
     """The controller also takes every parameter as an ``(n, 1)`` array, row ``e`` episode ``e``'s
     value: its generations' candidates fly together (``population_losses``)."""
+    budgets: Mapping[str, TuneBudget] | None = None
+    """This box's own efforts by budget name, where they differ from its version's
+    (``Tuning.budgets``)."""
+    start_from: tuple[str, str] | None = None
+    """``(controller, version)`` whose committed parameters seed the search instead of the params
+    dataclass's defaults (a port starts from what it was tuned to on an earlier version)."""
 
     def params(self, x: np.ndarray) -> Any:
         """The params dataclass at search point ``x`` ``(len(space),)`` (others at defaults)."""
@@ -105,8 +111,14 @@ class TuneSpec:
         return self.params_cls(**fields)
 
     def start(self) -> np.ndarray:
-        """The documented starting values, clipped into the box (seeded into DE's population)."""
-        default = self.params_cls()
+        """The documented starting values (or ``start_from``'s committed ones), clipped into the box
+        (seeded into DE's population)."""
+        if self.start_from is None:
+            default = self.params_cls()
+        else:
+            from scftc_cli.baselines.params import committed_params
+
+            default = self.params_cls(**committed_params(*self.start_from))
         x = [d.encode(getattr(default, d.name)) for d in self.space]
         return np.clip(x, [d.bounds()[0] for d in self.space], [d.bounds()[1] for d in self.space])
 
@@ -329,7 +341,7 @@ def tune(spec: TuneSpec, request: TrainRequest) -> TrainReport:
     per-episode box always runs deferred, in batches: the module docstring). The journal keeps
     every loss computed in this process, so that a stopped run resumes (``journal.py``).
     """
-    budget = tuning_of(spec.benchmark).budgets[request.budget]
+    budget = (spec.budgets or tuning_of(spec.benchmark).budgets)[request.budget]
     started = time.perf_counter()
     episodes = tuning_episodes(budget.n_faults, budget.n_seeds, spec.classes, spec.benchmark)
     dims = len(spec.space)

@@ -29,6 +29,7 @@ VERSIONS: dict[str, str] = {
     "scftc-v1": "scftc_cli.versions.v1:VERSION",
     "scftc-v2": "scftc_cli.versions.v2:VERSION",
     "scftc-v3": "scftc_cli.versions.v3:VERSION",
+    "scftc-v4": "scftc_cli.versions.v4:VERSION",
 }
 """Every registered version: its name and its ``Version`` record, in the order commands list them;
 the first is every command's default. ``register`` adds one at run time (tests)."""

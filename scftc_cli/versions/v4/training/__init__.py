@@ -1,0 +1,1 @@
+"""``scftc-v4``'s trainers and tuning boxes."""
