@@ -23,7 +23,12 @@ def _run(code: str) -> subprocess.CompletedProcess[str]:
 
 def test_every_versions_environment_is_declared_by_its_version() -> None:
     ids = [env.id for env in environments()]
-    assert ids == ["scftc/AttitudeFTC-v1", "scftc/AttitudeFTC-v2", "scftc/AttitudeFTC-v3"]
+    assert ids == [
+        "scftc/AttitudeFTC-v1",
+        "scftc/AttitudeFTC-v2",
+        "scftc/AttitudeFTC-v3",
+        "scftc/AttitudeFTC-v4",
+    ]
 
 
 def test_import_gymnasium_alone_then_the_module_form_registers_every_environment() -> None:

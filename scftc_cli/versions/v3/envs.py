@@ -31,6 +31,9 @@ split; the ``test`` split exists here for evaluation, never for tuning.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import ClassVar
+
 import numpy as np
 from gymnasium import spaces
 
@@ -60,16 +63,17 @@ def sample_episodes(
     split: str,
     classes: tuple[str, ...] = DEFAULT_CLASSES,
     sensors: tuple[str | None, ...] = DEFAULT_SENSORS,
+    pinned: Callable[..., AgileEpisodes] = pinned_episodes,
 ) -> AgileEpisodes:
     """``n`` fresh episodes of ``split``: per episode, its sensor class and (without a sensor
-    fault) its actuator class uniform, then the benchmark's sampler keyed by ``SALT_BYTES`` random
-    bytes (uncached)."""
+    fault) its actuator class uniform, then the benchmark's sampler (``pinned``: v3's, or a version
+    built on its mission) keyed by ``SALT_BYTES`` random bytes (uncached)."""
     parts = []
     for _ in range(n):
         sensor = sensors[int(rng.integers(len(sensors)))]
         fault_class = V3.sensor_base_class if sensor is not None else classes[int(rng.integers(len(classes)))]
         salt = rng.bytes(SALT_BYTES)
-        parts.append(pinned_episodes.__wrapped__(split, fault_class, sensor, 1, 1, salt, 0, 1))
+        parts.append(pinned.__wrapped__(split, fault_class, sensor, 1, 1, salt, 0, 1))  # type: ignore[attr-defined]
     return AgileEpisodes.concat(parts)
 
 
@@ -82,6 +86,7 @@ class MissionBatch(EpisodeBatch):
     episodes_type = AgileEpisodes
     default_classes = DEFAULT_CLASSES
     default_sensors = DEFAULT_SENSORS
+    pinned: ClassVar[Callable[..., AgileEpisodes]] = staticmethod(pinned_episodes)
 
     @classmethod
     def observation_space(cls, include_prev_action: bool, dtype: type) -> spaces.Box:
@@ -97,7 +102,7 @@ class MissionBatch(EpisodeBatch):
         )
 
     def draw(self, rng: np.random.Generator) -> AgileEpisodes:
-        return sample_episodes(rng, self.n, self.split, self.fault_classes, self.sensor_faults)
+        return sample_episodes(rng, self.n, self.split, self.fault_classes, self.sensor_faults, self.pinned)
 
     def measured_error(self, obs: np.ndarray, fused_sigma: np.ndarray) -> np.ndarray:
         return attitude_error(fused_sigma, obs[:, TARGET])

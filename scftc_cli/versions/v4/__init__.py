@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scftc_cli.versions import TUNER, ControllerSpec, StudyPlan, Version
+from scftc_cli.versions import TUNER, ControllerSpec, GymEnv, StudyPlan, Version
 from scftc_cli.versions.v3 import REGIME_RULE
 from scftc_cli.versions.v3 import VERSION as V3_VERSION
 from scftc_cli.versions.v4.spec import V4
@@ -45,7 +45,13 @@ VERSION = Version(
     study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
     trainers={"pid": TUNER, "rls_dob": TUNER},
     tuning="scftc_cli.versions.v4.training.tuning:TUNING",
-    envs=(),
+    envs=(
+        GymEnv(
+            "scftc/AttitudeFTC-v4",
+            "scftc_cli.versions.v4.envs:AttitudeFTCv4Env",
+            "scftc_cli.versions.v4.envs:AttitudeFTCv4VectorEnv",
+        ),
+    ),
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
     draft=True,

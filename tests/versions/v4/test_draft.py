@@ -59,3 +59,19 @@ def test_reproduce_refuses_a_draft_before_flying(tmp_path):
     result = runner.invoke(app, ["reproduce", "--benchmark", "scftc-v4", "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and "is a draft" in result.output and "scftc admission" in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_the_gym_environment_flies_v4_train_episodes_and_refuses_its_held_out_split():
+    import gymnasium
+    import pytest
+
+    import scftc_cli  # noqa: F401  (registers the environments)
+    from scftc_cli.errors import UsageError
+
+    env = gymnasium.make("scftc/AttitudeFTC-v4")
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (26,) and "fault" not in info
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    assert obs.shape == (26,) and not terminated and 0.0 <= info["pointing_error_deg"] <= 180.0
+    with pytest.raises(UsageError, match="is a draft"):
+        gymnasium.make("scftc/AttitudeFTC-v4", split="test")
