@@ -10,9 +10,8 @@ budget it was tuned with.
 
 from __future__ import annotations
 
-from scftc_cli.training.tuning import TuneBudget, TuneSpec, Tuning
+from scftc_cli.training.tuning import Dim, TuneBudget, TuneSpec, Tuning
 from scftc_cli.versions.v2.controllers.pid import PIDParams
-from scftc_cli.versions.v2.controllers.rls import RLSParams
 from scftc_cli.versions.v3.training import tuning as v3
 from scftc_cli.versions.v3.training.tuning import PID_SPACE
 from scftc_cli.versions.v4.controllers import pid, rls
@@ -37,9 +36,14 @@ SPECS: dict[str, TuneSpec] = {
     ),
     rls.NAME: TuneSpec(
         rls.NAME,
-        RLSParams,
+        rls.V4RLSParams,
         rls.RLSDob,
-        v3.SPECS[rls.NAME].space,
+        (
+            *v3.SPECS[rls.NAME].space,
+            Dim("kp_s2", 0.005, 5.0, log=True),
+            Dim("kd_s", 0.03, 3.0, log=True),
+            Dim("dead_below", 0.005, 0.2, log=True),
+        ),
         benchmark=V4.version,
         classes=CLASSES,
         per_episode_params=True,
@@ -50,8 +54,9 @@ SPECS: dict[str, TuneSpec] = {
         },
     ),
 }
-"""The ``scftc-v4`` ports tuned here: ``pid`` over v3's ``PID_SPACE``; ``rls_dob`` over v3's box,
-started from v3's tuned settings, with a smaller effort (2 x 14 candidates, 8 generations, 4 faults x
+"""The ``scftc-v4`` ports tuned here: ``pid`` over v3's ``PID_SPACE``; ``rls_dob`` over v3's box plus
+its law's PD gains (``pid``'s ranges) and its dead-wheel threshold, started from v3's tuned
+settings, with a smaller effort (2 x 14 candidates, 8 generations, 4 faults x
 2 seeds per cell): its estimator costs several times ``pid``'s per step."""
 
 TUNING = Tuning(specs=SPECS, budgets=BUDGETS, score_sensor_cells=True)
