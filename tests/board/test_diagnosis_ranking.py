@@ -32,7 +32,8 @@ from scftc_cli.statistics import profile_counts
 from scftc_cli.versions import get_spec, get_version, register, unregister
 
 from .probes import FixedFrom, probes
-from .test_board import SALT, round_one
+from .test_board import round_one
+from .test_diagnosis import sealed_entry
 
 VERSION = "scftc-v3"
 """The version flown (see the module docstring)."""
@@ -195,23 +196,7 @@ def _entry(
         )
         for c in board_cells(spec)
     ]
-    return Entry(
-        name=name,
-        kind="builtin",
-        privileged=privileged,
-        summary="hand-made",
-        benchmark_version=spec.version,
-        package_version="0",
-        created_utc="2026-01-01T00:00:00Z",
-        n_faults=spec.n_faults,
-        n_seeds=spec.n_seeds,
-        status="sealed",
-        round=1,
-        added_board_version=2,
-        public=cells,
-        sealed=cells,
-        sealed_salt=SALT,
-    )
+    return sealed_entry(name, spec, cells, privileged)
 
 
 @pytest.fixture(scope="module")
