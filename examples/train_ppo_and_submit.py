@@ -216,7 +216,11 @@ def main() -> None:
     model = train(args.timesteps, args.seed, args.num_envs, args.benchmark)
     args.out.write_text(export(model, args.name, args.author, args.timesteps, args.seed, args.benchmark))
     print(f"wrote {args.out} ({args.out.stat().st_size} bytes)")
-    if not args.no_dry_run:
+    from scftc_cli.versions import get_version
+
+    if not args.no_dry_run and get_version(args.benchmark).draft:
+        print(f"no dry run: {args.benchmark} is a draft; its held-out draw is closed until it is frozen")
+    elif not args.no_dry_run:
         faults, seeds = args.dry_run_size
         command = [sys.executable, "-m", "scftc_cli", "submit", str(args.out), "--dry-run"]
         command += ["--n-faults", str(faults), "--n-seeds", str(seeds)]

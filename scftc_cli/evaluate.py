@@ -164,7 +164,8 @@ def check_held_out_open(spec: BenchmarkSpec, cells: Sequence[Cell], privileged: 
     if held_out:
         raise UsageError(
             f"{spec.version} is a draft: its {held_out[0]} split stays unflown by deployable controllers "
-            f"until its battery is frozen ({version.definition[0]}); fly --split train"
+            f"until its battery is frozen ({version.definition[0]}); its train split is open "
+            "(`--split train` where the command has it)"
         )
 
 

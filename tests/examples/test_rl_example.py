@@ -34,8 +34,7 @@ def test_train_export_and_dry_run(tmp_path: Path, benchmark: str):
     command = [sys.executable, str(EXAMPLE), "--timesteps", "2048", "--num-envs", "8", "--name", "tiny_ppo"]
     command += ["--benchmark", benchmark]
     command += ["--out", str(out), "--dry-run-size", "2", "1"]
-    draft = get_version(benchmark).draft  # its held-out draw is closed: no dry run there
-    command += ["--no-dry-run"] if draft else []
+    draft = get_version(benchmark).draft  # its held-out draw is closed: the example skips the dry run
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     env = {**os.environ, "TMPDIR": str(scratch)}
@@ -47,6 +46,7 @@ def test_train_export_and_dry_run(tmp_path: Path, benchmark: str):
     assert f"wrote {out}" in result.stdout
     passed = "dry run: every check passed; nothing written"
     assert ("public draw:" in result.stdout and passed in result.stdout) != draft
+    assert ("no dry run: " in result.stdout) == draft
     sub = load_submission(out)  # one valid file: its sha256 covers the weights inside it
     assert sub.manifest.name == "tiny_ppo" and "WEIGHTS" in sub.source.decode()
     assert sub.manifest.benchmark == benchmark

@@ -27,7 +27,7 @@ def test_a_deployable_controller_may_not_fly_the_held_out_split_of_a_draft():
             + ["--class", "sign", "--n-faults", "1", "--n-seeds", "1"],
         )
         assert result.exit_code == 2, result.output
-        assert "is a draft" in result.output and "--split train" in result.output
+        assert "is a draft" in result.output and "its train split is open" in result.output
 
 
 def test_the_oracle_and_the_train_split_fly():
