@@ -21,6 +21,7 @@ from gymnasium.vector.utils import batch_space
 from gymnasium.vector.vector_env import AutoresetMode
 
 from scftc_cli.errors import UsageError
+from scftc_cli.evaluate import Cell, check_held_out_open
 from scftc_cli.sim.episodes import Episodes
 from scftc_cli.sim.mrp import angle_deg_from_norm2, principal_angle_deg
 from scftc_cli.sim.testbed import Testbed
@@ -96,6 +97,8 @@ class EpisodeBatch(ABC):
                 self.spec.check_cell(split, self.spec.sensor_base_class, s)
         if backend not in ("numpy", "reference"):
             raise UsageError(f"backend must be numpy or reference, got {backend!r}")
+        # an agent in training is a deployable controller: a draft's held-out split stays closed to it
+        check_held_out_open(self.spec, [Cell(split, c) for c in fault_classes], privileged=False)
         self.n, self.split = n, split
         self.fault_classes, self.sensor_faults = fault_classes, sensor_faults
         self.include_prev_action = include_prev_action

@@ -2,17 +2,14 @@
 (``versions/v3/envs.py``: the same observation, action, reward and vector stepping), drawn from
 v4's sampler over its eleven actuator classes.
 
-While ``scftc-v4`` is a draft the environment flies its train split only: its held-out split stays
-unflown by anything that could be trained on it until the battery is frozen
-(docs/benchmark-v4.md).
+While ``scftc-v4`` is a draft the environment flies its train split only (``EpisodeBatch`` refuses
+a draft's held-out split, as ``evaluate.check_held_out_open`` does): nothing trained on it may have
+seen its held-out faults before the battery is frozen (docs/benchmark-v4.md).
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 from scftc_cli.envs.batch import BatchEnv, BatchVectorEnv
-from scftc_cli.errors import UsageError
 from scftc_cli.versions.v3.envs import MissionBatch
 from scftc_cli.versions.v4.sim.faults import pinned_episodes
 from scftc_cli.versions.v4.sim.testbed import TESTBED
@@ -28,16 +25,6 @@ class V4MissionBatch(MissionBatch):
     testbed = TESTBED
     default_classes = V4.fault_classes
     pinned = staticmethod(pinned_episodes)
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        from scftc_cli.versions import get_version
-
-        if get_version(V4.version).draft and self.split != "train":
-            raise UsageError(
-                f"{V4.version} is a draft: its {self.split} split stays closed until its battery is frozen; "
-                "use split='train'"
-            )
 
 
 class AttitudeFTCv4Env(BatchEnv):
