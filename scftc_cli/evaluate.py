@@ -347,7 +347,9 @@ def _evaluate_on_cluster(
     over the cluster at once, then each cell's chunks concatenated in order and scored here (and
     their readings handed to ``inspect``, cell by cell)."""
     if isinstance(ref, BuiltinRef):
-        check_held_out_open(spec, cells, controller_spec(ref.name, ref.benchmark).privileged)
+        check_held_out_open(
+            spec, cells, controller_spec(ref.name, ref.benchmark, ref.artifact is not None).privileged
+        )
     from scftc_cli.distributed.runner import run_stack
 
     faults = spec.n_faults if n_faults is None else n_faults
@@ -506,7 +508,7 @@ def choose_controller(
         return ControllerChoice(sub.manifest.name, False, lambda _cell: make_local(), local, (), sub.path)
     if name is None:  # unreachable (checked above); narrows the type
         raise UsageError("give --controller NAME")
-    entry = controller_spec(name, spec.version)
+    entry = controller_spec(name, spec.version, in_training=params is not None)
     if params is None:
         plain = BuiltinRef(name, spec.version)
         return ControllerChoice(

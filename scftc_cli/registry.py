@@ -30,13 +30,16 @@ def builtin_names() -> set[str]:
     return {c.name for version in all_versions() for c in version.controllers}
 
 
-def controller_spec(name: str, benchmark: str | None = None) -> ControllerSpec:
-    """The entry of ``name`` for ``benchmark`` (the default version when ``None``).
+def controller_spec(name: str, benchmark: str | None = None, in_training: bool = False) -> ControllerSpec:
+    """The entry of ``name`` for ``benchmark`` (the default version when ``None``); with
+    ``in_training``, also a port of that version whose committed artifact does not exist yet
+    (``Version.in_training``: what ``scftc train`` writes, flown only from the file it wrote).
 
     Raises:
         UnknownNameError: no built-in has that name, or no version that one (the closest names are
             suggested).
-        UsageError: it exists, but flies other benchmark versions only (they are named).
+        UsageError: it exists, but flies other benchmark versions only (they are named), or is
+            still in training there.
     """
     benchmark = benchmark or default_version()
     if benchmark not in version_names():
@@ -44,6 +47,15 @@ def controller_spec(name: str, benchmark: str | None = None) -> ControllerSpec:
     here = registry(benchmark)
     if name in here:
         return here[name]
+    pending = {c.name: c for c in get_version(benchmark).in_training}
+    if name in pending:
+        if in_training:
+            return pending[name]
+        raise UsageError(
+            f"`{name}` is still in training on {benchmark}: it has no committed artifact yet; "
+            f"`scftc train --benchmark {benchmark} --controller {name} --out FILE` writes one, and "
+            f"`--params FILE` flies it"
+        )
     versions = [v.name for v in all_versions() if any(c.name == name for c in v.controllers)]
     if not versions:
         raise UnknownNameError("controller", name, here)

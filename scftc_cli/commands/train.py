@@ -62,7 +62,7 @@ def train_command(
     from scftc_cli.training import TrainRequest, cluster_trainers, get_trainer
     from scftc_cli.versions import benchmark_option
 
-    entry = controller_spec(controller, benchmark)  # an unknown name or version fails here
+    entry = controller_spec(controller, benchmark, in_training=True)  # an unknown name or version fails here
     trainer = get_trainer(controller, benchmark)
     spread = cluster_trainers(benchmark)
     if (workers is not None or scheduler_address(scheduler)) and controller not in spread:

@@ -30,7 +30,7 @@ class BuiltinRef:
         """A controller factory and a clean-up function."""
         from scftc_cli.registry import controller_spec
 
-        entry = controller_spec(self.name, self.benchmark)
+        entry = controller_spec(self.name, self.benchmark, in_training=self.artifact is not None)
         if self.artifact is None:
             return entry.make, lambda: None
         from scftc_cli.baselines.params import controller_from_artifact

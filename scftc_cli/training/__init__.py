@@ -57,7 +57,8 @@ class TrainRequest:
 
     def artifact_out(self) -> Path:
         """Where the artifact goes: ``out``, else the controller's committed artifact."""
-        return self.out or controller_spec(self.controller, self.benchmark).artifact_paths()[0]
+        entry = controller_spec(self.controller, self.benchmark, in_training=True)
+        return self.out or entry.artifact_paths()[0]
 
     def on_progress(self, fraction: float, message: str) -> None:
         """The run is ``fraction`` (0..1) done; ``message`` says what it is doing."""

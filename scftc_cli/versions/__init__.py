@@ -138,6 +138,9 @@ class Version:
         alias: the short name its spec keeps in ``scftc_cli.spec`` (``spec.V1``).
         draft: still being calibrated: it has no board, and the loops over published versions
             (``published_names``: boards, ``make reproduce``, verification) leave it out.
+        in_training: ports with a trainer whose committed artifact does not exist yet: ``scftc
+            train`` produces it, nothing else sees them; each moves to ``controllers`` once its
+            artifact is committed.
     """
 
     spec: BenchmarkSpec[Any, Any, Any]
@@ -152,10 +155,12 @@ class Version:
     definition: tuple[str, str] = ("", "")
     alias: str = ""
     draft: bool = False
+    in_training: tuple[ControllerSpec, ...] = ()
 
     def __post_init__(self) -> None:
-        bound = tuple(replace(c, benchmark=self.name) for c in self.controllers)
-        object.__setattr__(self, "controllers", bound)
+        for name in ("controllers", "in_training"):
+            bound = tuple(replace(c, benchmark=self.name) for c in getattr(self, name))
+            object.__setattr__(self, name, bound)
 
     @property
     def name(self) -> str:
