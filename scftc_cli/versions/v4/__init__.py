@@ -37,13 +37,37 @@ VERSION = Version(
             "train split from v3's settings",
             artifacts=("params/v4/rls_dob.yaml",),
         ),
-        V3_BUILT_INS["teacher"],
-        V3_BUILT_INS["oracle"],
+        ControllerSpec(
+            "teacher",
+            "scftc_cli.versions.v4.controllers.analytic:Teacher",
+            "privileged: v3's teacher (the law through the true g(t) and rod gains; perfect diagnosis) "
+            "at the oracle's tuned gains",
+            artifacts=("params/v4/oracle.yaml",),
+            privileged=True,
+            family="oracle",
+        ),
+        ControllerSpec(
+            "oracle",
+            "scftc_cli.versions.v4.controllers.analytic:Oracle",
+            "privileged: v3's oracle (the teacher plus true offsets, friction, environment torques, "
+            "true field) at its law gains tuned on v4's train split",
+            artifacts=("params/v4/oracle.yaml",),
+            privileged=True,
+            family="oracle",
+        ),
     ),
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v4/",
     study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
-    trainers={"pid": TUNER, "rls_dob": TUNER},
+    # every port's trainer; a port joins the controllers above once its committed parameters or
+    # weights exist (as on v3)
+    trainers={
+        "pid": TUNER,
+        "rls_dob": TUNER,
+        "oracle": TUNER,
+        "rma_student": "scftc_cli.versions.v4.training.rma:train_student",
+        "rma_dob": "scftc_cli.versions.v4.training.rma:train_student",
+    },
     tuning="scftc_cli.versions.v4.training.tuning:TUNING",
     envs=(
         GymEnv(
@@ -55,4 +79,22 @@ VERSION = Version(
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
     draft=True,
+    in_training=(
+        ControllerSpec(
+            "rma_student",
+            "scftc_cli.versions.v4.controllers.rma:RMAStudent",
+            "v3's rma_student (v2's per-wheel GRU estimate of g, latched, re-opened on a change) at the "
+            "oracle's law gains, trained on v4's train split",
+            artifacts=("weights/v4/rma_student.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
+            "rma_dob",
+            "scftc_cli.versions.v4.controllers.rma:RMADob",
+            "v3's rma_dob (bias-invariant gain student + per-wheel offset and friction observer) at the "
+            "oracle's law gains, trained on v4's train split",
+            artifacts=("weights/v4/rma_dob.npz",),
+            family="learned",
+        ),
+    ),
 )
