@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from scftc_cli.errors import ScftcError, UsageError
-from scftc_cli.evaluate import Cell
+from scftc_cli.evaluate import Cell, check_held_out_open
 from scftc_cli.loading import load
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.registry import controller_spec, make_controller, registry
@@ -54,9 +54,13 @@ def _buildable(name: str, benchmark: str = DEFAULT_BENCHMARK) -> bool:
 
 
 def default_controllers(benchmark: str = DEFAULT_BENCHMARK) -> tuple[str, ...]:
-    """``pd`` plus the first buildable controller of the version's adaptive preference list."""
+    """``pd`` plus the first buildable controller of the version's adaptive preference list; on a
+    draft version the adaptive (privileged) one alone, since its held-out cells are closed to
+    ``pd`` until the battery is frozen (``evaluate.check_held_out_open``)."""
     chosen = plan(benchmark)
     adaptive = next((c for c in chosen.adaptive_preference if _buildable(c, benchmark)), None)
+    if get_version(benchmark).draft and adaptive is not None:
+        return (adaptive,)
     return (FAULT_UNAWARE,) if adaptive is None else (FAULT_UNAWARE, adaptive)
 
 
@@ -285,8 +289,8 @@ def crosscheck(
     chosen = plan(benchmark)
     version = chosen.spec.version
     controllers = tuple(controllers) if controllers else default_controllers(version)
-    for name in controllers:
-        controller_spec(name, version)  # an unknown name fails here, with a suggestion
+    for name in controllers:  # an unknown name fails here, with a suggestion; so does a draft's held-out cell
+        check_held_out_open(chosen.spec, list(chosen.groups), controller_spec(name, version).privileged)
     basilisk_version = chosen.basilisk_version()  # BackendUnavailable before any work
     bed = testbed(version)
 

@@ -22,6 +22,7 @@ a wheel at its limit a step; so each flight is held to the larger of the toleran
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, ClassVar
 
 import numpy as np
@@ -30,6 +31,7 @@ from scftc_cli.evaluate import Cell
 from scftc_cli.protocol import NO_PROGRESS, Progress
 from scftc_cli.registry import make_controller
 from scftc_cli.sim.rollout import Rollout, rollout
+from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.study.crosscheck import (
     GroupCheck,
     Plan,
@@ -243,20 +245,28 @@ def one_step(
     return diff, saturated, cut
 
 
-def _mission_check(
-    controller: str, cell: Cell, episodes: Any, ref: Rollout, bsk: Rollout, progress: Progress
+def mission_check(
+    spec: BenchmarkSpec,
+    controller: str,
+    cell: Cell,
+    episodes: Any,
+    ref: Rollout,
+    bsk: Rollout,
+    progress: Progress,
 ) -> MissionGroupCheck:
+    """The check of one batch of ``spec``'s (v3's, or a version flying v3's mission): the Basilisk
+    run's one-step replay, both backends' speed-limit counts, and the rounding twin's flight."""
     step_diff, bsk_saturated, bsk_cut = one_step(episodes, bsk, progress)
     ref_saturated, ref_cut = speed_limits(episodes, ref)
     twin = rollout(
-        make_controller(controller, V3.version),
+        make_controller(controller, spec.version),
         episodes,
         record=True,
         progress=progress,
         plant=RoundingTwinPlant.of(episodes),
     )
     return MissionGroupCheck(
-        **group_check(V3, controller, cell, episodes, ref, bsk),
+        **group_check(spec, controller, cell, episodes, ref, bsk),
         max_abs_step_diff=step_diff,
         max_abs_wheel_speed_diff=max_abs_diff(
             ref.states["wheel_speed_rad_s"], bsk.states["wheel_speed_rad_s"]
@@ -268,12 +278,20 @@ def _mission_check(
     )
 
 
-CROSSCHECK = Plan(
-    V3,
-    GROUPS,
-    ADAPTIVE_PREFERENCE,
-    _mission_check,
-    MissionCrosscheckResult,
-    basilisk_backend("scftc_cli.versions.v3.sim.basilisk"),
-    check_flights=2,  # the Basilisk run's one-step replay and the rounding twin
-)
+def mission_plan(
+    spec: BenchmarkSpec, groups: tuple[Cell, ...], result: type[MissionCrosscheckResult]
+) -> Plan:
+    """The cross-check plan of ``spec`` (v3's mission; ``groups`` its cells in dealing order):
+    the teacher (else the oracle) beside ``pd``, each batch checked by ``mission_check``."""
+    return Plan(
+        spec,
+        groups,
+        ADAPTIVE_PREFERENCE,
+        partial(mission_check, spec),
+        result,
+        basilisk_backend("scftc_cli.versions.v3.sim.basilisk"),
+        check_flights=2,  # the Basilisk run's one-step replay and the rounding twin
+    )
+
+
+CROSSCHECK = mission_plan(V3, GROUPS, MissionCrosscheckResult)

@@ -58,7 +58,12 @@ VERSION = Version(
     ),
     folder=Path(__file__).resolve().parent,
     artifact_prefix="v4/",
-    study=StudyPlan(sensors_in_battery=True, regime_rule=REGIME_RULE, detector=None),
+    study=StudyPlan(
+        sensors_in_battery=True,
+        regime_rule=REGIME_RULE,
+        detector=None,
+        crosscheck="scftc_cli.versions.v4.study:CROSSCHECK",
+    ),
     # every port's trainer; a port joins the controllers above once its committed parameters or
     # weights exist (as on v3)
     trainers={
