@@ -38,6 +38,14 @@ VERSION = Version(
             artifacts=("params/v4/rls_dob.yaml",),
         ),
         ControllerSpec(
+            "rma_student",
+            "scftc_cli.versions.v4.controllers.rma:RMAStudent",
+            "v3's rma_student (v2's per-wheel GRU estimate of g, latched, re-opened on a change) at the "
+            "oracle's law gains, trained on v4's train split",
+            artifacts=("weights/v4/rma_student.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "teacher",
             "scftc_cli.versions.v4.controllers.analytic:Teacher",
             "privileged: v3's teacher (the law through the true g(t) and rod gains; perfect diagnosis) "
@@ -85,14 +93,6 @@ VERSION = Version(
     alias="V4",
     draft=True,
     in_training=(
-        ControllerSpec(
-            "rma_student",
-            "scftc_cli.versions.v4.controllers.rma:RMAStudent",
-            "v3's rma_student (v2's per-wheel GRU estimate of g, latched, re-opened on a change) at the "
-            "oracle's law gains, trained on v4's train split",
-            artifacts=("weights/v4/rma_student.npz",),
-            family="learned",
-        ),
         ControllerSpec(
             "rma_dob",
             "scftc_cli.versions.v4.controllers.rma:RMADob",
