@@ -21,7 +21,7 @@ import numpy as np
 
 from scftc_cli.board.models import BACKEND, Entry
 from scftc_cli.distributed.refs import BuiltinRef, ControllerRef, SubmissionRef
-from scftc_cli.errors import SubmissionRejected
+from scftc_cli.errors import LeaderboardError, SubmissionRejected
 from scftc_cli.evaluate import (
     Cell,
     ControllerFactory,
@@ -35,7 +35,7 @@ from scftc_cli.records import CellResult
 from scftc_cli.registry import ControllerSpec
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.submission.limits import SandboxLimits
-from scftc_cli.submission.manifest import MAX_SOURCE_BYTES, Submission
+from scftc_cli.submission.manifest import MAX_SOURCE_BYTES, Submission, load_submission
 from scftc_cli.submission.sandbox import Sandbox, SandboxedController
 
 if TYPE_CHECKING:
@@ -311,6 +311,54 @@ def find_submission_file(entry: Entry, submissions_dir: Path, root: Path) -> Pat
         if hashlib.sha256(real.read_bytes()).hexdigest() == entry.sha256:
             return path
     return None
+
+
+class EntryUnflyable(LeaderboardError):
+    """An entry that cannot be flown again as it was scored (the one-line reason); ``fix`` says how
+    to make it flyable where the maintainer can."""
+
+    def __init__(self, message: str, fix: str | None = None) -> None:
+        super().__init__(message)
+        self.fix = fix
+
+
+def entry_controller(
+    entry: Entry, battery: dict[str, ControllerSpec], submissions_dir: Path, root: Path
+) -> ControllerSpec | Submission:
+    """What flies ``entry`` again as it was scored, for ``seal``, ``rescore`` and ``verify``: its
+    built-in (still in ``battery``, the same privileged flag, the same artifact files) or its
+    submitted file (found by sha256, the same name in its manifest).
+
+    Raises:
+        EntryUnflyable: any of these no longer holds (the reason, and the fix where there is one).
+    """
+    if entry.kind == "builtin":
+        info = battery.get(entry.name)
+        if info is None:
+            raise EntryUnflyable("built-in controller no longer registered")
+        if info.privileged != entry.privileged:
+            raise EntryUnflyable("privileged flag differs from the registry")
+        hashes = artifact_hashes(info)
+        if hashes != entry.artifacts:
+            changed = sorted(
+                p for p in set(hashes) | set(entry.artifacts) if entry.artifacts.get(p) != hashes.get(p)
+            )
+            raise EntryUnflyable(
+                f"its parameter or weight files changed since it was scored: {', '.join(changed)}"
+            )
+        return info
+    path = find_submission_file(entry, submissions_dir, root)
+    if path is None:
+        raise EntryUnflyable(
+            f"its submitted file (sha256 {(entry.sha256 or '')[:12]}...) is not found under "
+            f"{submissions_dir}",
+            fix=f"commit the submitted file under {submissions_dir}, or point verify at the folder "
+            "that holds it with --submissions DIR",
+        )
+    sub = load_submission(path)
+    if sub.manifest.name != entry.name:
+        raise EntryUnflyable(f"{path} is named `{sub.manifest.name}` in its manifest")
+    return sub
 
 
 OnEntry = Callable[[str, float, str | None], None]  # name, seconds, failure (None: fine)

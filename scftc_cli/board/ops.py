@@ -22,11 +22,13 @@ from pathlib import Path
 from scftc_cli import __version__
 from scftc_cli.board.draws import PUBLIC, salt_from_hex
 from scftc_cli.board.flights import (
+    EntryUnflyable,
     OnEntry,
     Scoring,
     artifact_hashes,
     budget,
     check_deterministic,
+    entry_controller,
     find_submission_file,
     fly_submission,
     require_same_commands,
@@ -41,7 +43,7 @@ from scftc_cli.board.store import default_submissions_dir, read_board, update_bo
 from scftc_cli.errors import LeaderboardError, ScftcError, SubmissionRejected, UnknownNameError, UsageError
 from scftc_cli.evaluate import board_cells
 from scftc_cli.records import CellResult, numerical_stack
-from scftc_cli.registry import builtin_names, registry
+from scftc_cli.registry import ControllerSpec, builtin_names, registry
 from scftc_cli.submission.isolation import require_caps, sandbox_unavailable
 from scftc_cli.submission.manifest import Submission, load_submission
 from scftc_cli.submission.wire import one_line
@@ -344,20 +346,9 @@ def _fly_sealed(
 ) -> list[CellResult]:
     """One entry's sealed cells, flown once (a submission: twice, in two fresh sandboxes, with its
     commands compared). Raises ``ScftcError`` with the one-line reason it fails."""
-    if entry.kind == "builtin":
-        battery = registry(scoring.spec.version)
-        if entry.name not in battery:
-            raise LeaderboardError("built-in controller no longer registered")
-        info = battery[entry.name]
-        if artifact_hashes(info) != entry.artifacts:
-            raise LeaderboardError("its parameter or weight files changed since it was submitted")
-        return score_builtin(info, scoring, {"sealed": salt})["sealed"]
-    path = find_submission_file(entry, submissions_dir, root)
-    if path is None:
-        raise SubmissionRejected(
-            f"its file (sha256 {(entry.sha256 or '')[:12]}...) is not under {submissions_dir}"
-        )
-    sub = load_submission(path)
+    sub = entry_controller(entry, registry(scoring.spec.version), submissions_dir, root)
+    if isinstance(sub, ControllerSpec):
+        return score_builtin(sub, scoring, {"sealed": salt})["sealed"]
     deadline = budget(scoring)
     first, digests = fly_submission(sub, scoring, salt, deadline)
     _, again = fly_submission(sub, scoring, salt, deadline, label=" (second flight)")
@@ -650,18 +641,15 @@ def rescore(
             )
         start = dt.datetime.now()
         draws = {"public": PUBLIC, "sealed": salt_from_hex(entry.sealed_salt)}
-        if entry.kind == "builtin":
-            info = registry(benchmark)[name]
-            if artifact_hashes(info) != entry.artifacts:
-                raise LeaderboardError(f"{name}'s parameter or weight files changed: rebuild it, not rescore")
-            fresh[name] = score_builtin(info, scoring, draws)
+        try:
+            flyable = entry_controller(entry, registry(benchmark), submissions_dir, root)
+        except EntryUnflyable as err:
+            fix = "rebuild it, not rescore" if entry.kind == "builtin" else "pass --submissions DIR"
+            raise LeaderboardError(f"{name}: {err}; {fix}") from err
+        if isinstance(flyable, ControllerSpec):
+            fresh[name] = score_builtin(flyable, scoring, draws)
         else:
-            path = find_submission_file(entry, submissions_dir, root)
-            if path is None:
-                raise LeaderboardError(
-                    f"{name}'s submitted file is not under {submissions_dir}; pass --submissions"
-                )
-            fresh[name] = score_submission(load_submission(path), scoring, draws)
+            fresh[name] = score_submission(flyable, scoring, draws)
         if on_entry is not None:
             on_entry(name, (dt.datetime.now() - start).total_seconds(), None)
 

@@ -27,8 +27,9 @@ from pathlib import Path
 from scftc_cli.board.draws import PUBLIC, salt_from_hex
 from scftc_cli.board.flights import (
     Draws,
+    EntryUnflyable,
     Scoring,
-    artifact_hashes,
+    entry_controller,
     find_submission_file,
     prefetch,
     score_builtin,
@@ -407,29 +408,18 @@ def _refly(
 ) -> list[str]:
     draws = entry_draws(entry)
     try:
-        if entry.kind == "builtin":
-            if entry.name not in battery:
-                return ["built-in controller no longer registered"]
-            info = battery[entry.name]
-            if info.privileged != entry.privileged:
-                return ["privileged flag differs from the registry"]
-            changed = sorted(p for p, h in artifact_hashes(info).items() if entry.artifacts.get(p) != h)
-            if changed or set(entry.artifacts) != set(info.artifacts):
-                return [f"its parameter or weight files changed since it was scored: {', '.join(changed)}"]
-            results = score_builtin(info, scoring, draws)
+        flyable = entry_controller(entry, battery, submissions_dir, root)
+    except EntryUnflyable as err:
+        if err.fix is not None:
+            report.fixes_by_name[entry.name] = err.fix
+        return [str(err)]
+    except ScftcError as err:  # its file no longer loads
+        return [f"re-run failed: {err}"]
+    try:
+        if isinstance(flyable, ControllerSpec):
+            results = score_builtin(flyable, scoring, draws)
         else:
-            path = find_submission_file(entry, submissions_dir, root)
-            if path is None:
-                sha = (entry.sha256 or "")[:12]
-                report.fixes_by_name[entry.name] = (
-                    f"commit the submitted file under {submissions_dir}, or point verify at the folder "
-                    "that holds it with --submissions DIR"
-                )
-                return [f"its submitted file (sha256 {sha}...) is not found under {submissions_dir}"]
-            sub = load_submission(path)
-            if sub.manifest.name != entry.name:
-                return [f"{path} is named `{sub.manifest.name}` in its manifest"]
-            results = score_submission(sub, scoring, draws)
+            results = score_submission(flyable, scoring, draws)
     except ScftcError as err:
         return [f"re-run failed: {err}"]
     except Exception as err:

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+import scftc_cli.board.flights as flights
 import scftc_cli.board.ops as ops
 import scftc_cli.board.verify as verifying
 from scftc_cli.board import store
@@ -155,7 +156,7 @@ def test_verify_names_a_built_in_whose_artifacts_changed(
     # a parameter file edited after sealing: the chain holds, the files do not
     doc["entries"][0]["artifacts"] = {}
     board.write_text(json.dumps(doc))
-    monkeypatch.setattr(verifying, "artifact_hashes", lambda info: {"params/pd.yaml": "1" * 64})
+    monkeypatch.setattr(flights, "artifact_hashes", lambda info: {"params/pd.yaml": "1" * 64})
     report = verify(board, Scoring(V1))
     assert report.problems == {
         "pd": ["its parameter or weight files changed since it was scored: params/pd.yaml"],
