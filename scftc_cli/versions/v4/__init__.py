@@ -46,6 +46,14 @@ VERSION = Version(
             family="learned",
         ),
         ControllerSpec(
+            "rma_dob",
+            "scftc_cli.versions.v4.controllers.rma:RMADob",
+            "v3's rma_dob (bias-invariant gain student + per-wheel offset and friction observer) at the "
+            "oracle's law gains, trained on v4's train split",
+            artifacts=("weights/v4/rma_dob.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "teacher",
             "scftc_cli.versions.v4.controllers.analytic:Teacher",
             "privileged: v3's teacher (the law through the true g(t) and rod gains; perfect diagnosis) "
@@ -92,14 +100,4 @@ VERSION = Version(
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
     draft=True,
-    in_training=(
-        ControllerSpec(
-            "rma_dob",
-            "scftc_cli.versions.v4.controllers.rma:RMADob",
-            "v3's rma_dob (bias-invariant gain student + per-wheel offset and friction observer) at the "
-            "oracle's law gains, trained on v4's train split",
-            artifacts=("weights/v4/rma_dob.npz",),
-            family="learned",
-        ),
-    ),
 )

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from scftc_cli import versions
 from scftc_cli.baselines.params import committed_params
 from scftc_cli.commands.app import app
 from scftc_cli.sim import testbed as testbeds
 from scftc_cli.sim.rollout import rollout
+from scftc_cli.versions import get_version
 from scftc_cli.versions.v2.controllers.law import KD_S, KP_S2
 from scftc_cli.versions.v2.controllers.student import LAYOUT, StudentConfig
 
@@ -67,7 +69,17 @@ def test_the_collector_targets_the_gain_in_force_as_it_creeps():
         assert (np.diff(creeping, axis=0) < 0).any()  # a gain that moves after the onset, not v3's step
 
 
-def test_a_port_in_training_is_refused_by_name_with_the_command_that_makes_it():
+@pytest.fixture
+def rma_dob_in_training(monkeypatch):
+    """v4 as it was before ``rma_dob``'s weights were committed: the port listed in training."""
+    version = get_version("scftc-v4")
+    entry = next(c for c in version.controllers if c.name == "rma_dob")
+    battery = tuple(c for c in version.controllers if c.name != "rma_dob")
+    pending = dataclasses.replace(version, controllers=battery, in_training=(entry,))
+    monkeypatch.setitem(versions._loaded, "scftc-v4", pending)  # the loaded record, its package kept
+
+
+def test_a_port_in_training_is_refused_by_name_with_the_command_that_makes_it(rma_dob_in_training):
     result = runner.invoke(
         app,
         ["eval", "--benchmark", "scftc-v4", "--controller", "rma_dob", "--split", "train"]
@@ -78,7 +90,7 @@ def test_a_port_in_training_is_refused_by_name_with_the_command_that_makes_it():
 
 
 @pytest.mark.slow
-def test_a_port_in_training_trains_and_flies_from_its_file(tmp_path, monkeypatch):
+def test_a_port_in_training_trains_and_flies_from_its_file(tmp_path, monkeypatch, rma_dob_in_training):
     pytest.importorskip("torch")
     from scftc_cli.training import TrainRequest
     from scftc_cli.versions.v4.training import rma
