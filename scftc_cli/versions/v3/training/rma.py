@@ -21,10 +21,13 @@ keeps the 2400-step sequences affordable: about 8 % of the steps are active.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from scftc_cli.baselines.student import StudentNet
-from scftc_cli.protocol import Context
+from scftc_cli.protocol import Context, Controller
+from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.training import TrainReport, TrainRequest
 from scftc_cli.training.dagger import DaggerPlan, Recording, train_dagger
 from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
@@ -32,6 +35,7 @@ from scftc_cli.versions.v2.training import rma as v2_rma
 from scftc_cli.versions.v2.training.rma import student_config
 from scftc_cli.versions.v3.controllers.rma import StudentMission
 from scftc_cli.versions.v3.envs import sample_episodes
+from scftc_cli.versions.v3.sim.faults import AgileEpisodes, pinned_episodes
 from scftc_cli.versions.v3.sim.testbed import public_context
 from scftc_cli.versions.v3.spec import V3
 
@@ -70,19 +74,36 @@ class _DaggerMission(Recording, StudentMission):
         return gain
 
 
-def train_student(request: TrainRequest) -> TrainReport:
-    """DAgger-train v3's student of ``request.controller`` (``rma_student`` or ``rma_dob``)."""
-    name, budget = request.controller, BUDGETS[request.budget]
-    classes = CLASSES[name]
-    plan = DaggerPlan(
-        spec=V3,
+def mission_plan(
+    spec: BenchmarkSpec,
+    classes: tuple[str, ...],
+    pinned: Callable[..., AgileEpisodes],
+    collector: Callable[..., Controller],
+    deployed: Callable[..., Controller],
+) -> DaggerPlan:
+    """The DAgger plan of a version flying v3's mission (v3's, v4's): fresh train draws of
+    ``classes`` from its sampler ``pinned``, four wheels, v2's student layout, active prefixes."""
+    return DaggerPlan(
+        spec=spec,
         wheels=WHEELS,
         classes=classes,
-        sample=lambda rng, n: sample_episodes(rng, n, "train", classes),
-        collector=_DaggerMission,
-        deployed=lambda net, config: StudentMission(net=net, config=config),
+        sample=lambda rng, n: sample_episodes(rng, n, "train", classes, pinned=pinned),
+        collector=collector,
+        deployed=deployed,
         layout=LAYOUT,
         n_features=N_FEATURES,
         prefixes=True,
+    )
+
+
+def train_student(request: TrainRequest) -> TrainReport:
+    """DAgger-train v3's student of ``request.controller`` (``rma_student`` or ``rma_dob``)."""
+    name, budget = request.controller, BUDGETS[request.budget]
+    plan = mission_plan(
+        V3,
+        CLASSES[name],
+        pinned_episodes,
+        _DaggerMission,
+        lambda net, config: StudentMission(net=net, config=config),
     )
     return train_dagger(request, budget, student_config(name, budget), plan)

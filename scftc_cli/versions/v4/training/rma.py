@@ -18,10 +18,9 @@ import numpy as np
 from scftc_cli.baselines.student import StudentNet
 from scftc_cli.protocol import Context
 from scftc_cli.training import TrainReport, TrainRequest
-from scftc_cli.training.dagger import DaggerPlan, Recording, train_dagger
-from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
+from scftc_cli.training.dagger import Recording, train_dagger
+from scftc_cli.versions.v2.controllers.student import StudentConfig
 from scftc_cli.versions.v2.training.rma import student_config
-from scftc_cli.versions.v3.envs import sample_episodes
 from scftc_cli.versions.v3.sim.testbed import public_context
 from scftc_cli.versions.v3.training import rma as v3
 from scftc_cli.versions.v4.controllers.rma import DEAD_BELOW, StudentMission
@@ -66,17 +65,12 @@ class _DaggerMission(Recording, StudentMission):
 def train_student(request: TrainRequest) -> TrainReport:
     """DAgger-train v4's student of ``request.controller`` (``rma_student`` or ``rma_dob``)."""
     name, budget = request.controller, BUDGETS[request.budget]
-    classes = CLASSES[name]
-    plan = DaggerPlan(
-        spec=V4,
-        wheels=v3.WHEELS,
-        classes=classes,
-        sample=lambda rng, n: sample_episodes(rng, n, "train", classes, pinned=pinned_episodes),
-        collector=_DaggerMission,
-        deployed=lambda net, config: StudentMission(net=net, config=config),
-        layout=LAYOUT,
-        n_features=N_FEATURES,
-        prefixes=True,
+    plan = v3.mission_plan(
+        V4,
+        CLASSES[name],
+        pinned_episodes,
+        _DaggerMission,
+        lambda net, config: StudentMission(net=net, config=config),
     )
     config = dataclasses.replace(student_config(name, budget), dead_below=DEAD_BELOW)
     return train_dagger(request, budget, config, plan)
