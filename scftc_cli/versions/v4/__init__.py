@@ -88,6 +88,7 @@ VERSION = Version(
         "oracle": TUNER,
         "rma_student": "scftc_cli.versions.v4.training.rma:train_student",
         "rma_dob": "scftc_cli.versions.v4.training.rma:train_student",
+        "e2e_ppo": "scftc_cli.versions.v4.training.ppo:train_e2e_ppo",
     },
     tuning="scftc_cli.versions.v4.training.tuning:TUNING",
     envs=(
@@ -100,4 +101,14 @@ VERSION = Version(
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
     draft=True,
+    in_training=(
+        ControllerSpec(
+            "e2e_ppo",
+            "scftc_cli.versions.v4.controllers.ppo:E2EPPO",
+            "v3's end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch "
+            "on v4's train split",
+            artifacts=("weights/v4/e2e_ppo.npz",),
+            family="learned",
+        ),
+    ),
 )

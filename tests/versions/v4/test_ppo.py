@@ -1,0 +1,52 @@
+"""scftc-v4's ``e2e_ppo`` port: v3's policy layout bound to v4 (it refuses v3's episodes), and
+v3's trainer on v4's environment writes a policy that flies v4 from its file."""
+
+from __future__ import annotations
+
+import pytest
+
+from scftc_cli.baselines.checker import check_controller
+from scftc_cli.baselines.policy import PolicyConfig
+from scftc_cli.versions.v4.controllers.ppo import E2EPPO, OBS_SCALE
+from scftc_cli.versions.v4.spec import V4
+
+torch = pytest.importorskip("torch")
+
+from scftc_cli.training.policy import RecurrentPolicy, policy_net  # noqa: E402
+
+
+def untrained():
+    torch.manual_seed(0)
+    config = PolicyConfig(lstm_hidden=8, net_arch=(8,))
+    return policy_net(RecurrentPolicy(config, len(OBS_SCALE), V4.action_dim).eval(), config)
+
+
+def test_an_untrained_policy_flies_v4_and_refuses_v3():
+    from scftc_cli.errors import UsageError
+    from scftc_cli.sim import testbed as testbeds
+    from scftc_cli.sim.rollout import rollout
+
+    check_controller(E2EPPO(net=untrained()), benchmark=V4.version)
+    with pytest.raises(UsageError, match="flies scftc-v4"):
+        rollout(
+            E2EPPO(net=untrained()), testbeds.testbed("scftc-v3").draw("train", "gain", n_faults=1, n_seeds=1)
+        )
+
+
+@pytest.mark.slow
+def test_a_quick_run_on_v4_writes_a_policy_that_flies_from_its_file(tmp_path, monkeypatch):
+    pytest.importorskip("gymnasium")
+    import yaml
+
+    from scftc_cli.training import TrainRequest
+    from scftc_cli.versions.v4.training import ppo
+
+    monkeypatch.setattr(ppo, "CLASSES", ("nominal", "incipient"))
+    out = tmp_path / "e2e_ppo.npz"
+    ppo.train_e2e_ppo(
+        TrainRequest(controller="e2e_ppo", benchmark=V4.version, seed=0, budget="quick", out=out)
+    )
+    doc = yaml.safe_load(out.with_suffix(".yaml").read_text())
+    assert doc["provenance"]["benchmark_version"] == V4.version
+    assert "on scftc-v4 train classes ['nominal', 'incipient']" in doc["provenance"]["notes"]
+    check_controller(E2EPPO(path=out), benchmark=V4.version)
