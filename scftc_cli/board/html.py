@@ -721,13 +721,11 @@ def _profiles(ranking: Ranking, spec: BenchmarkSpec) -> str:
                 at_gate=(low, high),
             )
         )
-        legend.append(
-            f'<li data-key="{esc(name)}">{swatch(colour, dash)}<span class="rank">{esc(rank_text(r))}</span>'
-            f'<span class="name">{esc(name)}</span>'
-            f'<span class="at-gate" title="settled rate: within {gate:g}° over every window\'s final '
-            f'{dwell_s:g} s; by-fault 95 % interval {100 * low:.1f} to {100 * high:.1f} %">'
-            f"{100 * values[gate_index]:.1f} %</span></li>"
+        title = (
+            f"settled rate: within {gate:g}° over every window's final {dwell_s:g} s; by-fault 95 % "
+            f"interval {100 * low:.1f} to {100 * high:.1f} %"
         )
+        legend.append(_legend_item(r, colour, dash, title, f"{100 * values[gate_index]:.1f} %"))
     chart = profile_chart(
         lines,
         taus.tolist(),
@@ -737,10 +735,24 @@ def _profiles(ranking: Ranking, spec: BenchmarkSpec) -> str:
         caption=f"settled-gate profiles of the ranked entries of {spec.version}, sealed draw",
         x_title=DWELL_AXIS,
     )
+    return _profile_note(spec, True) + _profile_figure(spec, chart, f"settled (≤ {gate:g}°)", legend)
+
+
+def _legend_item(r: Ranked, colour: str, dash: str, title: str, value: str) -> str:
+    """One entry of a profile chart's legend: its line's swatch, rank, name and ``value`` at the gate
+    (``title``: what that value is, on hover)."""
+    name = r.entry.name
     return (
-        _profile_note(spec, True)
-        + f'<figure class="profile" id="{esc(spec.version)}-profile-chart">{chart}<div>'
-        f'<div class="legend-head"><span>rank, controller</span><span>settled (≤ {gate:g}°)</span></div>'
+        f'<li data-key="{esc(name)}">{swatch(colour, dash)}<span class="rank">{esc(rank_text(r))}</span>'
+        f'<span class="name">{esc(name)}</span><span class="at-gate" title="{title}">{value}</span></li>'
+    )
+
+
+def _profile_figure(spec: BenchmarkSpec, chart: str, at_gate_head: str, legend: Sequence[str]) -> str:
+    """The board's profile figure: ``chart`` beside its legend, headed by what the value column is."""
+    return (
+        f'<figure class="profile" id="{esc(spec.version)}-profile-chart">{chart}<div>'
+        f'<div class="legend-head"><span>rank, controller</span><span>{at_gate_head}</span></div>'
         f'<ol class="legend">{"".join(legend)}</ol></div></figure>'
     )
 
@@ -772,7 +784,6 @@ def _profile_note(spec: BenchmarkSpec, gate_profile: bool) -> str:
 def _final_error_profiles(ranking: Ranking, spec: BenchmarkSpec, missing: Sequence[str]) -> str:
     """The pooled final-error profile of every ranked entry, for boards whose records predate the
     ranked gate's profile (``missing``: the entries without one)."""
-    version = esc(spec.version)
     ranked = ranking.ranked_classes
     gate = spec.gates.settled_deg
     unavailable = (
@@ -793,10 +804,9 @@ def _final_error_profiles(ranking: Ranking, spec: BenchmarkSpec, missing: Sequen
         )
         at = values[gate_index]
         legend.append(
-            f'<li data-key="{esc(name)}">{swatch(colour, dash)}<span class="rank">{esc(rank_text(r))}</span>'
-            f'<span class="name">{esc(name)}</span>'
-            f'<span class="at-gate" title="share of episodes within {at_tau:.3g}° at the end">'
-            f"{100 * at:.0f} %</span></li>"
+            _legend_item(
+                r, colour, dash, f"share of episodes within {at_tau:.3g}° at the end", f"{100 * at:.0f} %"
+            )
         )
     chart = profile_chart(
         lines,
@@ -809,9 +819,7 @@ def _final_error_profiles(ranking: Ranking, spec: BenchmarkSpec, missing: Sequen
     return (
         _profile_note(spec, False)
         + unavailable
-        + f'<figure class="profile" id="{version}-profile-chart">{chart}<div>'
-        f'<div class="legend-head"><span>rank, controller</span><span>≤ {at_tau:.3g}° at the end</span></div>'
-        f'<ol class="legend">{"".join(legend)}</ol></div></figure>'
+        + _profile_figure(spec, chart, f"≤ {at_tau:.3g}° at the end", legend)
     )
 
 
