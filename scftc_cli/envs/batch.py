@@ -129,6 +129,7 @@ class EpisodeBatch(ABC):
                 f"options['episodes'] must be {self.n} {self.spec.version} episodes "
                 f"({self.episodes_type.__name__})"
             )
+        self.episodes = episodes  # what is flown (a residual policy's base law reads their context)
         self.plant = self.testbed.plant(episodes, self.backend)
         self.sensors = self.testbed.sensors(episodes)
         self.fuser = AttitudeFuser(self.n)

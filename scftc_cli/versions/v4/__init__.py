@@ -89,6 +89,7 @@ VERSION = Version(
         "rma_student": "scftc_cli.versions.v4.training.rma:train_student",
         "rma_dob": "scftc_cli.versions.v4.training.rma:train_student",
         "e2e_ppo": "scftc_cli.versions.v4.training.ppo:train_e2e_ppo",
+        "residual_ppo": "scftc_cli.versions.v4.training.ppo:train_residual_ppo",
     },
     tuning="scftc_cli.versions.v4.training.tuning:TUNING",
     envs=(
@@ -108,6 +109,14 @@ VERSION = Version(
             "v3's end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch "
             "on v4's train split",
             artifacts=("weights/v4/e2e_ppo.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
+            "residual_ppo",
+            "scftc_cli.versions.v4.controllers.ppo:ResidualPPO",
+            "pd's mission law plus a recurrent policy's correction (at most 0.2 of each actuator's "
+            "limit), PPO on v4's train split",
+            artifacts=("weights/v4/residual_ppo.npz",),
             family="learned",
         ),
     ),

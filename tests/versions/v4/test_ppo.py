@@ -3,6 +3,7 @@ v3's trainer on v4's environment writes a policy that flies v4 from its file."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from scftc_cli.baselines.checker import check_controller
@@ -50,3 +51,44 @@ def test_a_quick_run_on_v4_writes_a_policy_that_flies_from_its_file(tmp_path, mo
     assert doc["provenance"]["benchmark_version"] == V4.version
     assert "on scftc-v4 train classes ['nominal', 'incipient']" in doc["provenance"]["notes"]
     check_controller(E2EPPO(path=out), benchmark=V4.version)
+
+
+def test_the_residual_environment_with_no_correction_flies_pd_exactly():
+    pytest.importorskip("gymnasium")
+    from scftc_cli.sim.rollout import rollout
+    from scftc_cli.versions.v3.controllers.analytic import PD
+    from scftc_cli.versions.v4.training.ppo import ResidualVectorEnv
+
+    env = ResidualVectorEnv(2, "train", ("nominal", "double"))
+    obs, _ = env.reset(seed=3)
+    assert obs.shape == (2, V4.obs_dim + V4.action_dim)
+    episodes = env.env._batch.episodes
+    errors = []
+    for _ in range(V4.steps):
+        obs, _, _, truncated, info = env.step(np.zeros((2, V4.action_dim)))
+        errors.append(info["pointing_error_deg"])
+    assert truncated.all() and info["final_obs"].shape == (2, V4.obs_dim + V4.action_dim)
+    flown = rollout(PD(), episodes)
+    np.testing.assert_array_equal(errors[-1], flown.final_error_deg)  # the base law, bit for bit
+
+
+def test_an_untrained_residual_policy_stays_within_its_scale_of_pd():
+    from scftc_cli.sim import testbed as testbeds
+    from scftc_cli.training.recurrent_ppo import ActorCritic
+    from scftc_cli.versions.v3.controllers.analytic import PD
+    from scftc_cli.versions.v4.controllers.ppo import RESIDUAL_OBS_SCALE, RESIDUAL_SCALE, ResidualPPO
+
+    torch.manual_seed(0)
+    config = PolicyConfig(lstm_hidden=8, net_arch=(8,))
+    actor = ActorCritic(config, -1.0, len(RESIDUAL_OBS_SCALE), V4.action_dim).actor  # the trainer's start
+    residual = ResidualPPO(net=policy_net(actor.eval(), config))
+    check_controller(residual, benchmark=V4.version)
+    bed = testbeds.testbed(V4.version)
+    episodes = bed.draw("train", "sign", n_faults=2, n_seeds=1)
+    context = bed.context(episodes, False)
+    base = PD()
+    residual.reset(2, context)
+    base.reset(2, context)
+    obs = bed.sensors(episodes).observe(0, bed.plant(episodes, "numpy"))
+    step = residual.act(obs) - base.act(obs)
+    assert np.all(np.abs(step) <= RESIDUAL_SCALE) and np.abs(step).max() < 0.05 * RESIDUAL_SCALE
