@@ -17,11 +17,14 @@ and final scoring well under an hour; what a full run takes is in its provenance
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from scftc_cli.baselines.policy import PolicyNet
 from scftc_cli.errors import ScftcError
+from scftc_cli.protocol import Controller
 from scftc_cli.training import TrainReport, TrainRequest
 from scftc_cli.training.recurrent_ppo import PPOBudget, PPOPlan, train_recurrent_ppo
 from scftc_cli.versions.v3.controllers.analytic import PD
@@ -42,20 +45,30 @@ BUDGETS = dict(v3.BUDGETS)
 """v3's budgets (a copy: changing v4's never changes v3's)."""
 
 
-def train_e2e_ppo(request: TrainRequest) -> TrainReport:
-    """``scftc train --benchmark scftc-v4 --controller e2e_ppo``: PPO from scratch on the train split."""
+def vector_env() -> type:
+    """``scftc/AttitudeFTC-v4``'s vector environment class (gymnasium is the ``rl`` extra's)."""
     try:
         from scftc_cli.versions.v4.envs import AttitudeFTCv4VectorEnv
     except ImportError as err:  # pragma: no cover - depends on the installed extras
-        raise ScftcError("training e2e_ppo needs the `rl` extra: pip install 'scftc[rl]'") from err
-    plan = PPOPlan(
-        spec=V4,
-        make_env=AttitudeFTCv4VectorEnv,
-        classes=CLASSES,
-        obs_scale=OBS_SCALE,
-        deployed=lambda net: E2EPPO(net=net),
-    )
-    return train_recurrent_ppo(request, BUDGETS[request.budget], plan)
+        raise ScftcError("training a policy needs the `rl` extra: pip install 'scftc[rl]'") from err
+    return AttitudeFTCv4VectorEnv
+
+
+def _train(
+    request: TrainRequest,
+    budget: PPOBudget,
+    make_env: Callable[..., Any],
+    obs_scale: tuple[float, ...],
+    deployed: Callable[[PolicyNet], Controller],
+) -> TrainReport:
+    """The shared recurrent PPO on v4's train split, every actuator class."""
+    plan = PPOPlan(spec=V4, make_env=make_env, classes=CLASSES, obs_scale=obs_scale, deployed=deployed)
+    return train_recurrent_ppo(request, budget, plan)
+
+
+def train_e2e_ppo(request: TrainRequest) -> TrainReport:
+    """``scftc train --benchmark scftc-v4 --controller e2e_ppo``: PPO from scratch on the train split."""
+    return _train(request, BUDGETS[request.budget], vector_env(), OBS_SCALE, lambda net: E2EPPO(net=net))
 
 
 RESIDUAL_BUDGETS: dict[str, PPOBudget] = {
@@ -75,9 +88,7 @@ class ResidualVectorEnv:
     law is reset with the episodes (every ``reset`` and the same-step autoreset)."""
 
     def __init__(self, n: int, split: str, classes: tuple[str, ...]) -> None:
-        from scftc_cli.versions.v4.envs import AttitudeFTCv4VectorEnv
-
-        self.env = AttitudeFTCv4VectorEnv(n, split, classes, dtype=np.float64)
+        self.env = vector_env()(n, split, classes, dtype=np.float64)
         self.n = n
 
     def _start(self, readings: np.ndarray) -> np.ndarray:
@@ -108,11 +119,5 @@ class ResidualVectorEnv:
 
 def train_residual_ppo(request: TrainRequest) -> TrainReport:
     """``scftc train --benchmark scftc-v4 --controller residual_ppo``: PPO on ``pd``'s correction."""
-    plan = PPOPlan(
-        spec=V4,
-        make_env=ResidualVectorEnv,
-        classes=CLASSES,
-        obs_scale=RESIDUAL_OBS_SCALE,
-        deployed=lambda net: ResidualPPO(net=net),
-    )
-    return train_recurrent_ppo(request, RESIDUAL_BUDGETS[request.budget], plan)
+    budget = RESIDUAL_BUDGETS[request.budget]
+    return _train(request, budget, ResidualVectorEnv, RESIDUAL_OBS_SCALE, lambda net: ResidualPPO(net=net))
