@@ -26,8 +26,9 @@ def registry(benchmark: str | None = None) -> dict[str, ControllerSpec]:
 
 
 def builtin_names() -> set[str]:
-    """Every built-in's name, on any benchmark version (reserved on every board)."""
-    return {c.name for version in all_versions() for c in version.controllers}
+    """Every built-in's name, on any benchmark version, ports still in training included (reserved
+    on every board: a submission cannot take the name a built-in is about to have)."""
+    return {c.name for version in all_versions() for c in (*version.controllers, *version.in_training)}
 
 
 def controller_spec(name: str, benchmark: str | None = None, in_training: bool = False) -> ControllerSpec:

@@ -75,7 +75,7 @@ def rma_dob_in_training(monkeypatch):
     version = get_version("scftc-v4")
     entry = next(c for c in version.controllers if c.name == "rma_dob")
     battery = tuple(c for c in version.controllers if c.name != "rma_dob")
-    pending = dataclasses.replace(version, controllers=battery, in_training=(entry,))
+    pending = dataclasses.replace(version, controllers=battery, in_training=(*version.in_training, entry))
     monkeypatch.setitem(versions._loaded, "scftc-v4", pending)  # the loaded record, its package kept
 
 
@@ -121,3 +121,9 @@ def test_a_port_in_training_trains_and_flies_from_its_file(tmp_path, monkeypatch
         + ["--class", "incipient", "--n-faults", "1", "--n-seeds", "1", "--format", "json"],
     )
     assert result.exit_code == 0, result.output
+
+
+def test_a_port_in_training_reserves_its_name_on_every_board(rma_dob_in_training):
+    from scftc_cli.registry import builtin_names
+
+    assert {"residual_ppo", "e2e_ppo", "rma_dob"} <= builtin_names()
