@@ -40,9 +40,12 @@ from scftc_cli.versions.v3.controllers.law import split_observation
 from scftc_cli.versions.v3.spec import V3
 
 
-def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
-    """v3's committed student ``name`` (or the one at ``path``), ready for the kernel (float64)."""
-    return student.load_student(path or committed_weights(name, V3.version), LAYOUT, StudentConfig)
+def load_student(
+    name: str, path: Path | None = None, benchmark: str = V3.version
+) -> tuple[StudentNet, StudentConfig]:
+    """``benchmark``'s committed student ``name`` (or the one at ``path``; v3's by default), ready for
+    the kernel (float64)."""
+    return student.load_student(path or committed_weights(name, benchmark), LAYOUT, StudentConfig)
 
 
 class StudentMission(MissionLaw):
@@ -50,12 +53,13 @@ class StudentMission(MissionLaw):
     the observer's offsets and extra friction cancelled per wheel."""
 
     name = "rma_student"
+    benchmark = V3.version  # whose committed weights it loads (a version built on v3's mission: its own)
 
     def __init__(
         self, path: Path | None = None, net: StudentNet | None = None, config: StudentConfig | None = None
     ) -> None:
         if net is None or config is None:
-            net, config = load_student(self.name, path)
+            net, config = load_student(self.name, path, self.benchmark)
         self.net, self.config = net, config
 
     def reset(self, n: int, context: Context) -> None:

@@ -19,11 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from scftc_cli.baselines import student
-from scftc_cli.baselines.params import committed_params, committed_weights
+from scftc_cli.baselines.params import committed_params
 from scftc_cli.baselines.student import StudentNet
-from scftc_cli.protocol import Context
-from scftc_cli.versions.v2.controllers.student import LAYOUT, StudentConfig
+from scftc_cli.versions.v2.controllers.student import StudentConfig
 from scftc_cli.versions.v3.controllers import rma as v3
 from scftc_cli.versions.v3.controllers.fused import rate_limited_demand
 from scftc_cli.versions.v4.controllers import analytic
@@ -34,11 +32,6 @@ DEAD_BELOW = 0.0125
 estimate below it is allocated as a dead wheel."""
 
 
-def load_student(name: str, path: Path | None = None) -> tuple[StudentNet, StudentConfig]:
-    """v4's committed student ``name`` (or the one at ``path``), ready for the kernel (float64)."""
-    return student.load_student(path or committed_weights(name, V4.version), LAYOUT, StudentConfig)
-
-
 def law_gains() -> analytic.LawGains:
     """The mission law's PD gains every v4 student flies: the oracle's committed ones."""
     return analytic.LawGains(**committed_params(*analytic.TunedLaw.tuned_as))
@@ -47,16 +40,13 @@ def law_gains() -> analytic.LawGains:
 class StudentMission(v3.StudentMission):
     """v3's student mission law at the oracle's gains, with v4's weights."""
 
+    benchmark = V4.version
+
     def __init__(
         self, path: Path | None = None, net: StudentNet | None = None, config: StudentConfig | None = None
     ) -> None:
-        if net is None or config is None:
-            net, config = load_student(self.name, path)
-        super().__init__(net=net, config=config)
-
-    def reset(self, n: int, context: Context) -> None:
-        super().reset(n, context)
-        self.gains = law_gains()
+        super().__init__(path, net, config)
+        self.gains = law_gains()  # read once, not at every reset
 
     def demand(self, error: np.ndarray, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
         return rate_limited_demand(error, gyro, tach, self.context, self.gains.kp_s2, self.gains.kd_s)
