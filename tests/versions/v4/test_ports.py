@@ -49,14 +49,14 @@ def test_the_collector_targets_the_gain_in_force_as_it_creeps():
     torch = pytest.importorskip("torch")
     from scftc_cli.training.dagger import student_net
     from scftc_cli.training.student import StudentModule
-    from scftc_cli.versions.v4.training.rma import _DaggerMission
+    from scftc_cli.versions.v4.training.rma import DaggerMission
 
     episodes = BED.draw("train", "incipient", n_faults=2, n_seeds=1)
     onset = np.asarray(episodes.fault.onset_step)
     steps = int(onset.max()) + 40
     torch.manual_seed(0)
     model = StudentModule(LAYOUT, 8, False)
-    collector = _DaggerMission(
+    collector = DaggerMission(
         student_net(model, LAYOUT, False), StudentConfig(hidden=8), np.ones(2, dtype=bool)
     )
     rollout(collector, episodes, steps=steps)

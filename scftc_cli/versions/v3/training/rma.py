@@ -30,6 +30,7 @@ from scftc_cli.protocol import Context, Controller
 from scftc_cli.spec import BenchmarkSpec
 from scftc_cli.training import TrainReport, TrainRequest
 from scftc_cli.training.dagger import DaggerPlan, Recording, train_dagger
+from scftc_cli.versions import get_spec
 from scftc_cli.versions.v2.controllers.student import LAYOUT, N_FEATURES, StudentConfig
 from scftc_cli.versions.v2.training import rma as v2_rma
 from scftc_cli.versions.v2.training.rma import student_config
@@ -49,9 +50,15 @@ BUDGETS = dict(v2_rma.BUDGETS)
 """v2's budgets (a copy: changing v3's never changes v2's)."""
 
 
-class _DaggerMission(Recording, StudentMission):
+class DaggerMission(Recording, StudentMission):
     """Training-only (privileged): the student in the loop, except on the episodes of
-    ``teacher_mask`` where the true gains are allocated through; records what the trainer needs."""
+    ``teacher_mask`` where the true gains in force are allocated through; records what the trainer
+    needs. Built on v3's student; a version built on v3's mission subclasses it with its own
+    student (whose ``benchmark`` names the spec its context is built for).
+
+    The target is the effectiveness in force at each step (``PlantFault.gain_at``): on v3's faults
+    1 before the onset and the fault's gain from it on; on v4's, a creeping gain or a wheel reversed
+    inside its bursts as it moves."""
 
     privileged = True
 
@@ -63,12 +70,13 @@ class _DaggerMission(Recording, StudentMission):
         if context.fault is None:
             raise ValueError("the DAgger collector needs the true fault")
         episodes = context.fault.episodes
-        self.true_gain, self.onset = np.asarray(episodes.fault.gain), np.asarray(episodes.fault.onset_step)
-        super().reset(n, public_context(episodes))  # the student itself never sees the fault
+        self.fault = episodes.fault
+        # the student itself never sees the fault
+        super().reset(n, public_context(episodes, spec=get_spec(self.benchmark)))
         self.start_recording()
 
     def gain_hat(self, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
-        true_gain = np.where((self.k >= self.onset)[:, None], self.true_gain, 1.0)
+        true_gain = self.fault.gain_at(self.k)
         gain = self.estimator.observe(gyro, tach, (self.teacher_mask, true_gain))
         self.record(self.estimator, true_gain)
         return gain
@@ -103,7 +111,7 @@ def train_student(request: TrainRequest) -> TrainReport:
         V3,
         CLASSES[name],
         pinned_episodes,
-        _DaggerMission,
+        DaggerMission,
         lambda net, config: StudentMission(net=net, config=config),
     )
     return train_dagger(request, budget, student_config(name, budget), plan)

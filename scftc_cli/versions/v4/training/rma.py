@@ -13,15 +13,9 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
-from scftc_cli.baselines.student import StudentNet
-from scftc_cli.protocol import Context
 from scftc_cli.training import TrainReport, TrainRequest
-from scftc_cli.training.dagger import Recording, train_dagger
-from scftc_cli.versions.v2.controllers.student import StudentConfig
+from scftc_cli.training.dagger import train_dagger
 from scftc_cli.versions.v2.training.rma import student_config
-from scftc_cli.versions.v3.sim.testbed import public_context
 from scftc_cli.versions.v3.training import rma as v3
 from scftc_cli.versions.v4.controllers.rma import DEAD_BELOW, StudentMission
 from scftc_cli.versions.v4.sim.faults import pinned_episodes
@@ -35,31 +29,9 @@ BUDGETS = dict(v3.BUDGETS)
 """v3's budgets (a copy: changing v4's never changes v3's)."""
 
 
-class _DaggerMission(Recording, StudentMission):
-    """Training-only (privileged): the student in the loop, except on the episodes of
-    ``teacher_mask`` where the true gains in force are allocated through; records what the trainer
-    needs."""
-
-    privileged = True
-    name = "rma_student"  # the collector is built from a net, never from committed weights
-
-    def __init__(self, net: StudentNet, config: StudentConfig, teacher_mask: np.ndarray) -> None:
-        super().__init__(net=net, config=config)
-        self.teacher_mask = teacher_mask[:, None]
-
-    def reset(self, n: int, context: Context) -> None:
-        if context.fault is None:
-            raise ValueError("the DAgger collector needs the true fault")
-        episodes = context.fault.episodes
-        self.fault = episodes.fault
-        super().reset(n, public_context(episodes, spec=V4))  # the student itself never sees the fault
-        self.start_recording()
-
-    def gain_hat(self, gyro: np.ndarray, tach: np.ndarray) -> np.ndarray:
-        true_gain = self.fault.gain_at(self.k)
-        gain = self.estimator.observe(gyro, tach, (self.teacher_mask, true_gain))
-        self.record(self.estimator, true_gain)
-        return gain
+class DaggerMission(v3.DaggerMission, StudentMission):
+    """v3's DAgger collector on v4's student (the oracle's gains, v4's context); its target, the
+    gain in force as it moves, is what v4's creeping and flickering wheels need."""
 
 
 def train_student(request: TrainRequest) -> TrainReport:
@@ -69,7 +41,7 @@ def train_student(request: TrainRequest) -> TrainReport:
         V4,
         CLASSES[name],
         pinned_episodes,
-        _DaggerMission,
+        DaggerMission,
         lambda net, config: StudentMission(net=net, config=config),
     )
     config = dataclasses.replace(student_config(name, budget), dead_below=DEAD_BELOW)

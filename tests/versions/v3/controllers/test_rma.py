@@ -77,13 +77,13 @@ def test_the_prefix_buffer_has_the_loss_and_gradient_of_the_whole_segments():
 
 
 def test_the_collector_records_the_true_gain_in_force_at_every_step():
-    from scftc_cli.versions.v3.training.rma import _DaggerMission
+    from scftc_cli.versions.v3.training.rma import DaggerMission
 
     episodes = BED.draw("train", "loss", n_faults=2, n_seeds=1)
     onset = np.asarray(episodes.fault.onset_step)
     steps = int(onset.max()) + 5
     model, config = untrained()
-    collector = _DaggerMission(student_net(model, LAYOUT, False), config, np.ones(2, dtype=bool))
+    collector = DaggerMission(student_net(model, LAYOUT, False), config, np.ones(2, dtype=bool))
     rollout(collector, episodes, steps=steps)
     targets = np.stack(collector.targets).reshape(steps, 2, 4)  # (T, n, m)
     gain = np.asarray(episodes.fault.gain).astype(np.float32)  # the buffer's precision
