@@ -38,6 +38,14 @@ VERSION = Version(
             artifacts=("params/v4/rls_dob.yaml",),
         ),
         ControllerSpec(
+            "fdir",
+            "scftc_cli.versions.v4.controllers.fdir:FDIR",
+            "composed FDIR: v2's MEKF (attitude, gyro bias, head isolation), rls_dob's per-wheel estimator "
+            "and observer, v3 fdir's rod identification; detectors calibrated on healthy train flight",
+            artifacts=("params/v4/fdir.yaml",),
+            family="classical",
+        ),
+        ControllerSpec(
             "rma_student",
             "scftc_cli.versions.v4.controllers.rma:RMAStudent",
             "v3's rma_student (v2's per-wheel GRU estimate of g, latched, re-opened on a change) at the "
@@ -86,6 +94,7 @@ VERSION = Version(
         "pid": TUNER,
         "rls_dob": TUNER,
         "oracle": TUNER,
+        "fdir": "scftc_cli.versions.v4.training.fdir:tune_fdir",
         "rma_student": "scftc_cli.versions.v4.training.rma:train_student",
         "rma_dob": "scftc_cli.versions.v4.training.rma:train_student",
         "e2e_ppo": "scftc_cli.versions.v4.training.ppo:train_e2e_ppo",
