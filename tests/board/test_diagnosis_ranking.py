@@ -3,9 +3,11 @@ that read nothing from the flight (``probes.py``) never rank above an honest det
 through the normal evaluate path on a few small cells; and the ranking's tie groups, budget and
 renderings on a hand-made board.
 
-``VERSION`` is the version flown. Until a version ranks its diagnosis, the tests fly it with its
-diagnosis overridden to ``ranked=True, detection="faulted_unit"`` (``ranked_spec``); switch it to
-the version that does (``scftc-v4``) once that exists: the override is then a no-op.
+``VERSION`` is the version flown: ``scftc-v4``, the first that ranks its diagnosis, against its own
+honest detector (its composed ``fdir``); ``ranked_spec`` (the diagnosis ranked under the
+``faulted_unit`` rule) is a no-op on it and lets the tests fly an older version. The cells are
+``SPLIT``'s: v4's train split while v4 is a draft (no deployable controller flies its held-out
+split before its battery is frozen).
 """
 
 from __future__ import annotations
@@ -35,12 +37,14 @@ from .probes import FixedFrom, probes
 from .test_board import round_one
 from .test_diagnosis import sealed_entry
 
-VERSION = "scftc-v3"
+VERSION = "scftc-v4"
 """The version flown (see the module docstring)."""
+SPLIT = "test" if not get_version(VERSION).draft else "train"
+"""The split flown (see the module docstring)."""
 HONEST = "fdir"
 """The built-in honest detector of ``VERSION``: its health reports come from residual tests."""
 CLASSES = ("nominal", "gain", "loss")
-"""Held-out classes flown: the nominal class (healthy flight only) and two wheel faults."""
+"""Classes flown: the nominal class (healthy flight only) and two wheel faults."""
 N_FAULTS, N_SEEDS = 2, 2
 
 
@@ -54,9 +58,9 @@ def ranked_spec(version: str = VERSION) -> BenchmarkSpec:
 
 @pytest.fixture(scope="module")
 def flown() -> dict[str, list[CellResult]]:
-    """Every probe's and the honest detector's cells, flown on ``CLASSES`` of the test split."""
+    """Every probe's and the honest detector's cells, flown on ``CLASSES`` of ``SPLIT``."""
     spec = ranked_spec()
-    cells = [Cell("test", c) for c in CLASSES]
+    cells = [Cell(SPLIT, c) for c in CLASSES]
     controllers = {HONEST: make_controller(HONEST, VERSION), **probes(spec, CLASSES)}
     return {
         name: [
@@ -100,16 +104,18 @@ def test_the_v3_rule_would_credit_a_constant_alarm():
     on units no fault touched detects every fault with no delay; under ``faulted_unit`` it detects
     none, and is a false isolation in every episode."""
     spec = get_spec(VERSION)
+    assert spec.diagnosis is not None
     bed = sim_testbed.testbed(VERSION)
-    truth = bed.diagnosis_truth(bed.draw("test", "loss", None, 2, 1))
+    truth = bed.diagnosis_truth(bed.draw(SPLIT, "loss", None, 2, 1))
     wrong = (truth.codes.max(axis=0) == 0).astype(np.int64)  # every unit these faults leave healthy
     assert wrong.any()
-    cells = [Cell("test", "loss")]
+    cells = [Cell(SPLIT, "loss")]
+    v3_rule = spec.diagnosis.model_copy(update={"detection": "any_alarm", "ranked": False})
     results = {
         rule.diagnosis.detection: evaluate_cells(
             lambda _c: FixedFrom(spec.action_dim, wrong, 0), rule, cells, n_faults=2, n_seeds=1
         )[0].result.diagnosis
-        for rule in (spec.model_copy(update={"diagnosis": spec.diagnosis.model_copy()}), ranked_spec())
+        for rule in (spec.model_copy(update={"diagnosis": v3_rule}), ranked_spec())
         if rule.diagnosis is not None
     }
     old, new = results["any_alarm"], results["faulted_unit"]
