@@ -37,25 +37,17 @@ from scftc_cli.versions.v2.controllers.law import (
     torque_demand,
     wheels_of,
 )
-from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFSettings, inv3
+from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFFields, inv3
 from scftc_cli.versions.v2.spec import V2
 
 NAME = "fdir"
 
 
 @dataclass(frozen=True)
-class FDIRParams:
+class FDIRParams(MEKFFields):
     """Every tunable figure, flat (filter ``mekf_*``, wheel detector ``wheel_*``); the defaults
     are the untuned starting point of docs/fdir.md."""
 
-    mekf_bias_walk: float = MEKFSettings.bias_walk
-    mekf_gyro_noise_scale: float = MEKFSettings.gyro_noise_scale
-    mekf_gate: float = MEKFSettings.gate
-    mekf_isolate_after: int = MEKFSettings.isolate_after
-    mekf_readmit_after: int = MEKFSettings.readmit_after
-    mekf_step_drift: float = MEKFSettings.step_drift
-    mekf_step_threshold: float = MEKFSettings.step_threshold
-    mekf_step_inflation: float = MEKFSettings.step_inflation
     wheel_drift: float = DetectorSettings.drift
     wheel_threshold: float = DetectorSettings.threshold
     wheel_model_noise: float = DetectorSettings.model_noise
@@ -71,9 +63,6 @@ class FDIRParams:
     wheel_revive_gain: float = DetectorSettings.revive_gain
     dither: float = 0.02
     probe: float = 0.1
-
-    def mekf(self) -> MEKFSettings:
-        return MEKFSettings(**_strip(self, "mekf_", MEKFSettings))
 
     def detector(self) -> DetectorSettings:
         return DetectorSettings(**_strip(self, "wheel_", DetectorSettings))

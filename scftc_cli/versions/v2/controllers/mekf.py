@@ -32,7 +32,7 @@ Units: rad, rad/s, s. Shapes: ``n`` episodes; heads ``(n, 3, 3)`` MRP, validity 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numba
 import numpy as np
@@ -71,6 +71,24 @@ class MEKFSettings:
     step_drift: float = 1.0
     step_threshold: float = 12.0
     step_inflation: float = 3e-4
+
+
+@dataclass(frozen=True)
+class MEKFFields:
+    """``MEKFSettings``' figures as flat ``mekf_*`` fields of a controller's parameters (a base
+    of the ``fdir`` parameters of v2 and v4); ``mekf()`` gathers them."""
+
+    mekf_bias_walk: float = MEKFSettings.bias_walk
+    mekf_gyro_noise_scale: float = MEKFSettings.gyro_noise_scale
+    mekf_gate: float = MEKFSettings.gate
+    mekf_isolate_after: int = MEKFSettings.isolate_after
+    mekf_readmit_after: int = MEKFSettings.readmit_after
+    mekf_step_drift: float = MEKFSettings.step_drift
+    mekf_step_threshold: float = MEKFSettings.step_threshold
+    mekf_step_inflation: float = MEKFSettings.step_inflation
+
+    def mekf(self) -> MEKFSettings:
+        return MEKFSettings(**{f.name: getattr(self, "mekf_" + f.name) for f in fields(MEKFSettings)})
 
 
 def inv3(m: np.ndarray) -> np.ndarray:

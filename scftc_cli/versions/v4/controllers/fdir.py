@@ -34,14 +34,13 @@ ones; ``params/fdir.yaml`` of the version holds them all with the calibration's 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from scftc_cli.protocol import Context
 from scftc_cli.versions.v2.controllers.estimators import null_dither
-from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFSettings
+from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFFields
 from scftc_cli.versions.v3.controllers import fdir as v3
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
 from scftc_cli.versions.v3.controllers.law import split_observation
@@ -54,7 +53,7 @@ HEADS, VALID, GYRO = slice(0, 9), slice(9, 12), slice(12, 15)  # the observation
 
 
 @dataclass(frozen=True)
-class FDIRParams(V4RLSParams):
+class FDIRParams(MEKFFields, V4RLSParams):
     """``rls_dob``'s settings, the filter's (``mekf_*``) and the detectors' thresholds.
 
     ``gain_tol``, ``offset_tol`` (of ``u_max``) and ``friction_tol`` (times the nominal Coulomb
@@ -62,23 +61,10 @@ class FDIRParams(V4RLSParams):
     counts healthy); the calibration raises each to its margin over healthy train flight.
     """
 
-    mekf_bias_walk: float = MEKFSettings.bias_walk
-    mekf_gyro_noise_scale: float = MEKFSettings.gyro_noise_scale
-    mekf_gate: float = MEKFSettings.gate
-    mekf_isolate_after: int = MEKFSettings.isolate_after
-    mekf_readmit_after: int = MEKFSettings.readmit_after
-    mekf_step_drift: float = MEKFSettings.step_drift
-    mekf_step_threshold: float = MEKFSettings.step_threshold
-    mekf_step_inflation: float = MEKFSettings.step_inflation
     gain_tol: float = V4.plant.health_gain_tolerance
     offset_tol: float = V4.plant.health_offset_tolerance
     friction_tol: float = V4.plant.health_friction_tolerance
     persist_steps: int = 20
-
-    def mekf(self) -> MEKFSettings:
-        return MEKFSettings(
-            **{f.name: getattr(self, "mekf_" + f.name) for f in dataclasses.fields(MEKFSettings)}
-        )
 
 
 class FDIR(RLSDob, v3.FDIR):
