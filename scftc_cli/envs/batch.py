@@ -236,6 +236,13 @@ class BatchVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
 
+    @property
+    def episodes(self) -> Episodes:
+        """The episodes flown now (drawn at the last reset or the same-step autoreset). For a
+        trainer's own law inside the step (a residual policy's base reads their public context),
+        never an agent's input: they hold the faults."""
+        return self._batch.episodes
+
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:

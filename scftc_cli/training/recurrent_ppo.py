@@ -14,7 +14,9 @@ throughput on the same machine.
 The environment draws train-split episodes of every actuator class (healthy sensors); the reward
 is the environment's, shaped on the *measured* error and rates. Every ``eval_every`` rollouts the
 deterministic actor (the numba kernel, as deployed) flies a few pinned *train* episodes of each
-class; the checkpoint kept is the best there (settled rate, then the smaller median final error).
+class; the checkpoint kept is the best there (settled rate, then the smaller median final error;
+with ``eval_start`` the untrained policy is a candidate too, so a residual policy is never kept
+worse than its base law on those episodes).
 Nothing here sees the test split. Deterministic for a seed (one torch thread, seeded generators).
 """
 
@@ -92,6 +94,7 @@ class PPOBudget:
     max_grad_norm: float = 0.5
     log_std_init: float = -0.5
     eval_every: int = 20  # rollouts between checkpoint evaluations
+    eval_start: bool = False  # also score the untrained policy as a checkpoint (a residual's start)
     eval_faults: int = 10  # pinned train episodes per class of a checkpoint evaluation (x eval_seeds)
     eval_seeds: int = 2
     lstm_hidden: int = 64
@@ -204,6 +207,13 @@ def train_recurrent_ppo(request: TrainRequest, budget: PPOBudget, plan: PPOPlan)
         reward_scale = ReturnScale(n, budget.gamma)
         obs, _ = env.reset(seed=int(rng.integers(2**31)))
         best: tuple[tuple[float, float], dict, int] = ((-1.0, -np.inf), {}, 0)
+        if budget.eval_start:
+            settled, neg_final, _ = checkpoint_score(
+                plan, policy_net(model.actor, config), budget.eval_faults, budget.eval_seeds
+            )
+            history.append({"rollout": 0, "env_steps": 0, "train_settled": settled,
+                            "median_final_error_deg": round(-neg_final, 3)})  # fmt: skip
+            best = ((settled, neg_final), copy.deepcopy(model.actor.state_dict()), 0)
         for it in range(budget.rollouts):
             for group in opt.param_groups:
                 group["lr"] = budget.learning_rate * (1.0 - it / budget.rollouts)

@@ -62,6 +62,14 @@ VERSION = Version(
             family="learned",
         ),
         ControllerSpec(
+            "residual_ppo",
+            "scftc_cli.versions.v4.controllers.ppo:ResidualPPO",
+            "pd's mission law plus a recurrent policy's correction (at most 0.2 of each actuator's "
+            "limit), PPO on v4's train split",
+            artifacts=("weights/v4/residual_ppo.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "teacher",
             "scftc_cli.versions.v4.controllers.analytic:Teacher",
             "privileged: v3's teacher (the law through the true g(t) and rod gains; perfect diagnosis) "
@@ -118,14 +126,6 @@ VERSION = Version(
             "v3's end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch "
             "on v4's train split",
             artifacts=("weights/v4/e2e_ppo.npz",),
-            family="learned",
-        ),
-        ControllerSpec(
-            "residual_ppo",
-            "scftc_cli.versions.v4.controllers.ppo:ResidualPPO",
-            "pd's mission law plus a recurrent policy's correction (at most 0.2 of each actuator's "
-            "limit), PPO on v4's train split",
-            artifacts=("weights/v4/residual_ppo.npz",),
             family="learned",
         ),
     ),

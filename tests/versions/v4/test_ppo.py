@@ -62,14 +62,33 @@ def test_the_residual_environment_with_no_correction_flies_pd_exactly():
     env = ResidualVectorEnv(2, "train", ("nominal", "double"))
     obs, _ = env.reset(seed=3)
     assert obs.shape == (2, V4.obs_dim + V4.action_dim)
-    episodes = env.env._batch.episodes
-    errors = []
+    episodes = env.env.episodes
+    errors, rewards = [], []
     for _ in range(V4.steps):
-        obs, _, _, truncated, info = env.step(np.zeros((2, V4.action_dim)))
+        obs, reward, _, truncated, info = env.step(np.zeros((2, V4.action_dim)))
         errors.append(info["pointing_error_deg"])
+        rewards.append(reward)
     assert truncated.all() and info["final_obs"].shape == (2, V4.obs_dim + V4.action_dim)
     flown = rollout(PD(), episodes)
     np.testing.assert_array_equal(errors[-1], flown.final_error_deg)  # the base law, bit for bit
+    # the reward pays for pointing near the target and nothing during a slew
+    rewards_, errors_ = np.array(rewards), np.array(errors)
+    assert ((rewards_ > 0.0) & (rewards_ <= 2.0)).all()
+    assert rewards_[errors_ > 20.0].max() < 1e-3 < rewards_[errors_ < 0.1].min()
+
+
+def test_a_residual_correction_costs_reward():
+    pytest.importorskip("gymnasium")
+    from scftc_cli.versions.v4.training.ppo import CORRECTION_COST, ResidualVectorEnv
+
+    rewards = []
+    for size in (0.0, 1.0):
+        env = ResidualVectorEnv(2, "train", ("nominal",))
+        env.reset(seed=5)
+        _, reward, *_ = env.step(np.full((2, V4.action_dim), size))
+        rewards.append(reward)
+    # one step of correction barely turns the body: the difference is its cost
+    np.testing.assert_allclose(rewards[0] - rewards[1], CORRECTION_COST * V4.action_dim, rtol=1e-9)
 
 
 def test_an_untrained_residual_policy_stays_within_its_scale_of_pd():

@@ -7,12 +7,21 @@ recurrent PPO of ``training/recurrent_ppo.py`` from scratch, v3's budgets) on
 
 ``residual_ppo``: the same PPO on the same split, through ``ResidualVectorEnv``: the environment
 steps ``pd``'s command plus the policy's scaled correction, and the policy reads the base command
-beside the readings (``controllers/ppo.py``, ``ResidualPPO``). Its exploration starts smaller than
-``e2e_ppo``'s (log-std -1.0: a correction noise of about 0.07 of an actuator's limit), since the
-base already flies the mission and every unit of noise is a pointing error. The ``full`` budget
-is 40 rollouts of 64 whole episodes (6.1 M env steps, a quarter of ``e2e_ppo``'s): at v3's
-``e2e_ppo`` rate (0.55 s an episode with its updates) 25 minutes of one core, with the checkpoint
-and final scoring well under an hour; what a full run takes is in its provenance.
+beside the readings (``controllers/ppo.py``, ``ResidualPPO``). Its reward is its own, on the
+measured error ``e`` (the base law's fused attitude to the current target) and the correction
+``c`` in [-1, 1]:
+
+    r = exp(-e_deg / settled_deg) + exp(-e_deg / (10 settled_deg)) - CORRECTION_COST |c|^2,
+
+which pays for pointing at the settled gate's scale (and leads there from ten times it) and is
+flat during a slew. The
+environment's shaped reward (``scftc/AttitudeFTC-v3``'s, ``-e/180 - |w| + ...``) is dominated by
+the slews, where the base flies at its rate cap: the first full run on it learned to slew harder
+and lost every episode (train settled 0.0 at every checkpoint). Exploration starts small
+(log-std -2.0: a correction noise of about 0.03 of an actuator's limit) with a lower learning
+rate, and the untrained policy (``pd`` to 5 % of its command) is a checkpoint candidate
+(``eval_start``). The ``full`` budget is 40 rollouts of 64 whole episodes (6.1 M env steps, a
+quarter of ``e2e_ppo``'s); what a full run takes is in its provenance.
 """
 
 from __future__ import annotations
@@ -25,9 +34,11 @@ import numpy as np
 from scftc_cli.baselines.policy import PolicyNet
 from scftc_cli.errors import ScftcError
 from scftc_cli.protocol import Controller
+from scftc_cli.sim.mrp import principal_angle_deg
 from scftc_cli.training import TrainReport, TrainRequest
 from scftc_cli.training.recurrent_ppo import PPOBudget, PPOPlan, train_recurrent_ppo
 from scftc_cli.versions.v3.controllers.analytic import PD
+from scftc_cli.versions.v3.controllers.law import TARGET, attitude_error
 from scftc_cli.versions.v3.sim.faults import AgileEpisodes
 from scftc_cli.versions.v3.sim.testbed import public_context
 from scftc_cli.versions.v3.training import ppo as v3
@@ -74,10 +85,15 @@ def train_e2e_ppo(request: TrainRequest) -> TrainReport:
 RESIDUAL_BUDGETS: dict[str, PPOBudget] = {
     "quick": PPOBudget(
         rollouts=2, n_envs=8, minibatch_envs=4, n_epochs=1, eval_every=2, eval_faults=1, eval_seeds=1,
-        log_std_init=-1.0,
+        log_std_init=-2.0, learning_rate=1e-4, eval_start=True,
     ),
-    "full": PPOBudget(rollouts=40, n_envs=64, minibatch_envs=32, eval_every=8, log_std_init=-1.0),
+    "full": PPOBudget(
+        rollouts=40, n_envs=64, minibatch_envs=32, eval_every=8, log_std_init=-2.0, learning_rate=1e-4,
+        eval_start=True,
+    ),
 }  # fmt: skip
+CORRECTION_COST = 0.01
+"""The reward's price of a correction at an actuator's full residual range, per step."""
 
 
 class ResidualVectorEnv:
@@ -93,7 +109,7 @@ class ResidualVectorEnv:
 
     def _start(self, readings: np.ndarray) -> np.ndarray:
         self.base = PD()
-        episodes = self.env._batch.episodes
+        episodes = self.env.episodes
         assert isinstance(episodes, AgileEpisodes)
         self.base.reset(self.n, public_context(episodes, spec=V4))
         return self._observe(readings)
@@ -109,12 +125,24 @@ class ResidualVectorEnv:
     def step(
         self, correction: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        command = np.clip(self.base_command + RESIDUAL_SCALE * np.clip(correction, -1.0, 1.0), -1.0, 1.0)
-        readings, reward, terminated, truncated, info = self.env.step(command)
+        bounded = np.clip(correction, -1.0, 1.0)
+        command = np.clip(self.base_command + RESIDUAL_SCALE * bounded, -1.0, 1.0)
+        readings, _, terminated, truncated, info = self.env.step(command)
+        cost = CORRECTION_COST * (bounded * bounded).sum(axis=1)
         if truncated.all():  # the episodes ended and the inner environment drew the next ones
             info["final_obs"] = self._observe(info["final_obs"])
+            reward = self._pointing(info["final_obs"]) - cost
             return self._start(readings), reward, terminated, truncated, info
-        return self._observe(readings), reward, terminated, truncated, info
+        observation = self._observe(readings)
+        return observation, self._pointing(observation) - cost, terminated, truncated, info
+
+    def _pointing(self, observation: np.ndarray) -> np.ndarray:
+        """``exp(-e_deg / settled_deg) + exp(-e_deg / (10 settled_deg))`` ``(n,)`` for the measured
+        error ``e`` of the readings the base law has just fused (module docstring)."""
+        target = observation[:, TARGET].astype(np.float64)
+        error = principal_angle_deg(attitude_error(self.base.fuser.sigma, target))
+        scale = V4.gates.settled_deg
+        return np.exp(-error / scale) + np.exp(-error / (10.0 * scale))
 
 
 def train_residual_ppo(request: TrainRequest) -> TrainReport:
