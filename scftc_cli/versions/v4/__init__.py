@@ -62,6 +62,14 @@ VERSION = Version(
             family="learned",
         ),
         ControllerSpec(
+            "e2e_ppo",
+            "scftc_cli.versions.v4.controllers.ppo:E2EPPO",
+            "v3's end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch "
+            "on v4's train split",
+            artifacts=("weights/v4/e2e_ppo.npz",),
+            family="learned",
+        ),
+        ControllerSpec(
             "residual_ppo",
             "scftc_cli.versions.v4.controllers.ppo:ResidualPPO",
             "pd's mission law plus a recurrent policy's correction (at most 0.2 of each actuator's "
@@ -119,14 +127,5 @@ VERSION = Version(
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
     draft=True,
-    in_training=(
-        ControllerSpec(
-            "e2e_ppo",
-            "scftc_cli.versions.v4.controllers.ppo:E2EPPO",
-            "v3's end-to-end recurrent policy (LSTM) on the 26 readings, wheels and rods, PPO from scratch "
-            "on v4's train split",
-            artifacts=("weights/v4/e2e_ppo.npz",),
-            family="learned",
-        ),
-    ),
+    in_training=(),
 )
