@@ -83,3 +83,12 @@ def test_the_calibration_raises_a_threshold_only_above_the_truths_tolerance(para
     # only the thresholds move: the flight's settings are the composition's
     moved = {k for k, v in dataclasses.asdict(calibrated).items() if dataclasses.asdict(params)[k] != v}
     assert moved <= {*training.WHEEL_STATISTICS, "mekf_step_threshold"}
+
+
+def test_a_wheel_that_drives_backwards_in_bursts_is_named(params):
+    """Inside a burst the estimator re-opens and finds the gain near -1 but seldom latches before
+    the burst ends; the reversal is read on every step, latched or not."""
+    _, outcomes = flown(FDIR(params), "intermittent")
+    d = outcomes.diagnosis
+    assert (d.delay_steps >= 0).all()  # every episode detected
+    np.testing.assert_array_equal(d.final_codes[:, :4] > 0, d.truth_codes[:, :4] > 0)  # isolated

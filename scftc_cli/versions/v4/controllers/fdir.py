@@ -20,8 +20,10 @@ composed from what the project already has (docs/benchmark-v4.md, section 6). De
     below ``dead_below`` (dead or reversed: the recovery drops it or drives it backwards),
     *degraded* while ``| |g| - 1 |`` exceeds ``gain_tol``, ``|b|`` exceeds ``offset_tol`` or
     ``kappa`` exceeds ``friction_tol`` times the nominal Coulomb level, each for ``persist_steps``
-    latched steps; a wheel once failed stays at least degraded (what it did once it may do again:
-    a burst that drove it backwards);
+    latched steps; *failed* also while its estimate, latched or not, reads it driving backwards
+    (``g`` below ``-REVERSED_BELOW``) for ``persist_steps`` steps: a burst that reverses a wheel
+    re-opens the estimator, which finds ``g`` near -1 but seldom latches before the burst ends. A
+    wheel once failed stays at least degraded (what it did once it may do again);
   - a head: *failed* while frozen (a bit-identical repeat) or while every head is out for
     ``persist_steps`` steps; *degraded* once the filter isolated it, or after an outage ended;
   - the gyro: *degraded* once the filter's bias-step CUSUM has alarmed (the filter then re-learns
@@ -50,6 +52,8 @@ from scftc_cli.versions.v4.spec import V4
 NAME = "fdir"
 HEALTHY, DEGRADED, FAILED = v3.HEALTHY, v3.DEGRADED, v3.FAILED
 HEADS, VALID, GYRO = slice(0, 9), slice(9, 12), slice(12, 15)  # the observation's columns
+REVERSED_BELOW = 0.5
+"""A wheel estimated below ``-REVERSED_BELOW`` drives backwards (half a reversed wheel's gain)."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,7 @@ class FDIR(RLSDob, v3.FDIR):
         self.wheel_count = np.zeros((n, m, 2), dtype=np.int64)  # persistence of (failed, degraded)
         self.wheel_now = np.zeros((n, m), dtype=np.int64)
         self.wheel_ever_failed = np.zeros((n, m), dtype=bool)
+        self.reversed_run = np.zeros((n, m), dtype=np.int64)
         self.outage_run = np.zeros(n, dtype=np.int64)
         self.outage_seen = np.zeros(n, dtype=bool)
 
@@ -148,8 +153,11 @@ class FDIR(RLSDob, v3.FDIR):
         held = self.wheel_count >= p.persist_steps
         now = np.where(held[..., 0], FAILED, np.where(held[..., 1], DEGRADED, HEALTHY))
         self.wheel_now = np.where(latched, now, self.wheel_now)
-        self.wheel_ever_failed |= self.wheel_now == FAILED
-        codes[:, :m] = np.maximum(self.wheel_now, np.where(self.wheel_ever_failed, DEGRADED, HEALTHY))
+        self.reversed_run = np.where(g < -REVERSED_BELOW, self.reversed_run + 1, 0)
+        backwards = self.reversed_run >= p.persist_steps  # read on every step, latched or not
+        wheel = np.where(backwards, FAILED, self.wheel_now)
+        self.wheel_ever_failed |= wheel == FAILED
+        codes[:, :m] = np.maximum(wheel, np.where(self.wheel_ever_failed, DEGRADED, HEALTHY))
         # rods and magnetometer: v3 fdir's
         codes[:, m : m + 3] = np.where(
             self.rod_failed.raised, FAILED, np.where(self.rod_degraded.raised, DEGRADED, HEALTHY)
