@@ -207,13 +207,24 @@ def train_recurrent_ppo(request: TrainRequest, budget: PPOBudget, plan: PPOPlan)
         reward_scale = ReturnScale(n, budget.gamma)
         obs, _ = env.reset(seed=int(rng.integers(2**31)))
         best: tuple[tuple[float, float], dict, int] = ((-1.0, -np.inf), {}, 0)
-        if budget.eval_start:
+
+        def checkpoint(done: int, logged: dict) -> tuple[float, float]:
+            """Score the actor after ``done`` rollouts, record it in the history (with ``logged``),
+            keep it if it is the best so far; returns ``(settled, -median final error)``."""
+            nonlocal best
             settled, neg_final, _ = checkpoint_score(
                 plan, policy_net(model.actor, config), budget.eval_faults, budget.eval_seeds
             )
-            history.append({"rollout": 0, "env_steps": 0, "train_settled": settled,
-                            "median_final_error_deg": round(-neg_final, 3)})  # fmt: skip
-            best = ((settled, neg_final), copy.deepcopy(model.actor.state_dict()), 0)
+            history.append(
+                {"rollout": done, "env_steps": done * n * steps, **logged, "train_settled": settled,
+                 "median_final_error_deg": round(-neg_final, 3)}
+            )  # fmt: skip
+            if (settled, neg_final) >= best[0]:
+                best = ((settled, neg_final), copy.deepcopy(model.actor.state_dict()), done)
+            return settled, neg_final
+
+        if budget.eval_start:
+            checkpoint(0, {})
         for it in range(budget.rollouts):
             for group in opt.param_groups:
                 group["lr"] = budget.learning_rate * (1.0 - it / budget.rollouts)
@@ -270,20 +281,7 @@ def train_recurrent_ppo(request: TrainRequest, budget: PPOBudget, plan: PPOPlan)
             returns.append(float(raw_return.mean()))
             message = f"rollout {it + 1}/{budget.rollouts}, episode return {returns[-1]:.1f}"
             if (it + 1) % budget.eval_every == 0 or it + 1 == budget.rollouts:
-                settled, neg_final, _ = checkpoint_score(
-                    plan, policy_net(model.actor, config), budget.eval_faults, budget.eval_seeds
-                )
-                history.append(
-                    {
-                        "rollout": it + 1,
-                        "env_steps": (it + 1) * n * steps,
-                        "return": round(returns[-1], 2),
-                        "train_settled": settled,
-                        "median_final_error_deg": round(-neg_final, 3),
-                    }
-                )
-                if (settled, neg_final) >= best[0]:
-                    best = ((settled, neg_final), copy.deepcopy(model.actor.state_dict()), it + 1)
+                settled, neg_final = checkpoint(it + 1, {"return": round(returns[-1], 2)})
                 message += f", train settled {settled:.3f}, median final error {-neg_final:.1f} deg"
             request.on_progress((it + 1) / budget.rollouts, message)
         policy = RecurrentPolicy(config, inputs_n, actions_n)

@@ -45,7 +45,7 @@ from scftc_cli.versions.v2.controllers.estimators import null_dither
 from scftc_cli.versions.v2.controllers.mekf import MEKF, MEKFFields
 from scftc_cli.versions.v3.controllers import fdir as v3
 from scftc_cli.versions.v3.controllers.analytic import MissionLaw
-from scftc_cli.versions.v3.controllers.law import split_observation
+from scftc_cli.versions.v3.controllers.law import MAG, split_observation
 from scftc_cli.versions.v4.controllers.rls import RLSDob, V4RLSParams
 from scftc_cli.versions.v4.spec import V4
 
@@ -74,7 +74,7 @@ class FDIRParams(MEKFFields, V4RLSParams):
 class FDIR(RLSDob, v3.FDIR):
     """The composition of the module docstring: ``rls_dob``'s estimator, observer, allocation and
     law gains (``RLSDob``), v3's rod and magnetometer detectors and rod recovery (``v3.FDIR``), v2's
-    filter in front of the law (``corrected``), and this version's diagnosis (``_codes``)."""
+    filter in front of the law (``corrected``), and this version's diagnosis (``_diagnose``)."""
 
     params_type = FDIRParams
     tuned_as = (NAME, V4.version)
@@ -117,7 +117,7 @@ class FDIR(RLSDob, v3.FDIR):
         if sample is not None:
             self.rls.update(sample, self.k, self.since)
         clean = obs.copy()
-        clean[:, 19:22] = field
+        clean[:, MAG] = field
         command = MissionLaw.act(self, clean)  # through corrected(), rls_dob's model, v3's rods
         wheels = null_dither(command[:, :m], self.since, p.dither_amp, p.dither_steps, self.rls.phi[..., 0])
         self.meter.hold(wheels)
