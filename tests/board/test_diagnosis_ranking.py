@@ -6,8 +6,8 @@ renderings on a hand-made board.
 ``VERSION`` is the version flown: ``scftc-v4``, the first that ranks its diagnosis, against its own
 honest detector (its composed ``fdir``); ``ranked_spec`` (the diagnosis ranked under the
 ``faulted_unit`` rule) is a no-op on it and lets the tests fly an older version. The cells are
-``SPLIT``'s: v4's train split while v4 is a draft (no deployable controller flies its held-out
-split before its battery is frozen).
+``SPLIT``'s: v4's held-out split (a draft's train split: no deployable controller flies a draft's
+held-out split).
 """
 
 from __future__ import annotations

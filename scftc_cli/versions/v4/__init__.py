@@ -126,6 +126,5 @@ VERSION = Version(
     ),
     definition=("docs/benchmark-v4.md", "## 9. The spec as data"),
     alias="V4",
-    draft=True,
     in_training=(),
 )

@@ -2,9 +2,8 @@
 (``versions/v3/envs.py``: the same observation, action, reward and vector stepping), drawn from
 v4's sampler over its eleven actuator classes.
 
-While ``scftc-v4`` is a draft the environment flies its train split only (``EpisodeBatch`` refuses
-a draft's held-out split, as ``evaluate.check_held_out_open`` does): nothing trained on it may have
-seen its held-out faults before the battery is frozen (docs/benchmark-v4.md).
+Training flies the train split; the held-out split is there for evaluation (every learned row was
+trained while v4 was a draft, when the environment refused its held-out split).
 """
 
 from __future__ import annotations

@@ -5,9 +5,8 @@ time-varying wheel gains (a creeping gain, a wheel driving backwards inside its 
 Basilisk backend reads them per step through the same ``faults_at`` the reference plant steps
 with, so they are compared like every other fault.
 
-While v4 is a draft only a privileged controller flies its held-out cells: ``scftc crosscheck
---benchmark scftc-v4 --controller teacher`` (``pd`` is refused with the rest of the deployable
-battery until the battery is frozen).
+The default run flies ``pd`` and the privileged ``teacher`` (``scftc crosscheck --benchmark
+scftc-v4``), as on v3.
 """
 
 from __future__ import annotations
