@@ -47,7 +47,7 @@ from scftc_cli.registry import ControllerSpec, builtin_names, registry
 from scftc_cli.submission.isolation import require_caps, sandbox_unavailable
 from scftc_cli.submission.manifest import Submission, load_submission
 from scftc_cli.submission.wire import one_line
-from scftc_cli.versions import published_names
+from scftc_cli.versions import check_accepts_entries, published_names
 
 
 def _event(
@@ -229,6 +229,7 @@ def submit(
             f"pass --benchmark {flies} or port the controller"
         )
     if not dry_run:
+        check_accepts_entries(benchmark)
         if not scoring.full_size:
             raise SubmissionRejected(
                 f"only full-size runs land on a board ({scoring.spec.n_faults} faults x "

@@ -377,8 +377,10 @@ def open_command(
     the key derives. Submissions then land in it as pending entries until it is sealed."""
     from scftc_cli.board.ops import open_round
     from scftc_cli.board.rounds import read_key
+    from scftc_cli.versions import check_accepts_entries
 
     board_path, bench = _resolve(ctx, leaderboard, benchmark)
+    check_accepts_entries(bench)
     board = open_round(board_path, bench, read_key(key_file))
     r = board.rounds[-1]
     _says_where(board_path, board.version, f"opened round {r.number}, commitment {r.commitment}")

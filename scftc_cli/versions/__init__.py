@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from scftc_cli.errors import UnknownNameError
+from scftc_cli.errors import LeaderboardError, UnknownNameError
 from scftc_cli.loading import load
 
 if TYPE_CHECKING:
@@ -141,6 +141,8 @@ class Version:
         in_training: ports with a trainer whose committed artifact does not exist yet: ``scftc
             train`` produces it, nothing else sees them; each moves to ``controllers`` once its
             artifact is committed.
+        superseded_by: the version that replaces it, if any: its board stays published and
+            verifiable, but opens no round and lands no submission (``check_accepts_entries``).
     """
 
     spec: BenchmarkSpec[Any, Any, Any]
@@ -156,6 +158,7 @@ class Version:
     alias: str = ""
     draft: bool = False
     in_training: tuple[ControllerSpec, ...] = ()
+    superseded_by: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("controllers", "in_training"):
@@ -273,3 +276,14 @@ def spec_by_alias(alias: str) -> BenchmarkSpec[Any, Any, Any] | None:
         if version.alias and version.alias == alias:
             return version.spec
     return None
+
+
+def check_accepts_entries(name: str) -> None:
+    """Refuse a new round or a landing submission on a superseded version's board (its entries and
+    rounds stay as they are, verifiable)."""
+    successor = get_version(name).superseded_by
+    if successor is not None:
+        raise LeaderboardError(
+            f"{name} is superseded by {successor}: its board takes no new round or submission; "
+            f"submit to {successor} instead (SUBMISSION['benchmark'] = '{successor}')"
+        )

@@ -117,4 +117,5 @@ VERSION = Version(
     ),
     definition=("docs/benchmark-v3.md", "## 9. The spec as data"),
     alias="V3",
+    superseded_by="scftc-v4",
 )
