@@ -98,11 +98,12 @@ test: setup-dev lint-workflows
 
 # Re-fly every published board, the versions side by side. With SPOT_CHECK=1 (what `make test`,
 # hence CI on every push, passes) the boards of SPOT_VERSIONS re-fly only SPOT_CELLS cells of each
-# entry, both draws, chosen by the commit (a full scftc-v3 re-flight is two 17-cell batteries per
-# entry, some 17 minutes of CPU); their round chains are still checked whole. `make verify-boards`
-# alone, and the weekly seal (`make seal-rounds`), re-fly every cell of every board.
-SPOT_VERSIONS := scftc-v3
-SPOT_CELLS := 3
+# entry, both draws, chosen by the commit (a full scftc-v3 or scftc-v4 re-flight is two 17-cell
+# batteries per entry, some 17 minutes of CPU each); their round chains are still checked whole.
+# `make verify-boards` alone, and the weekly seal (`make seal-rounds`), re-fly every cell of every
+# board.
+SPOT_VERSIONS := scftc-v3 scftc-v4
+SPOT_CELLS := 2
 verify-boards: setup
 	key=$$(git rev-parse HEAD 2>/dev/null || echo no-commit); \
 	pids=""; for version in $(VERSIONS); do \
