@@ -89,7 +89,7 @@ def reproduce_command(
         if training_seeds:
             from scftc_cli.study.seeds import write_seed_table
 
-            paths.append(write_seed_table(spec, out, progress))
+            paths.append(write_seed_table(spec, out, progress, runner))
         if log_episodes is not None:
             rows = [
                 row

@@ -14,16 +14,21 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from scftc_cli.baselines.params import controller_from_artifact
+from scftc_cli.distributed.refs import BuiltinRef
 from scftc_cli.evaluate import Cell, board_cells, evaluate_cells
 from scftc_cli.protocol import NO_PROGRESS, Controller, Progress
 from scftc_cli.records import CellResult
 from scftc_cli.registry import ControllerSpec
 from scftc_cli.render import markdown_lines
 from scftc_cli.spec import BenchmarkSpec
+
+if TYPE_CHECKING:
+    from scftc_cli.distributed.runner import Runner
 
 SEED_FILE = re.compile(r"^seed(\d+)$")
 
@@ -54,10 +59,14 @@ class SeedSpread:
 
 
 def seed_spread(
-    entry: ControllerSpec, spec: BenchmarkSpec, cells: list[Cell], progress: Progress = NO_PROGRESS
+    entry: ControllerSpec,
+    spec: BenchmarkSpec,
+    cells: list[Cell],
+    progress: Progress = NO_PROGRESS,
+    runner: Runner | None = None,
 ) -> SeedSpread | None:
-    """Fly every seed's weights of ``entry`` on ``cells`` (full size); ``None`` with fewer than two
-    seeds."""
+    """Fly every seed's weights of ``entry`` on ``cells`` (full size), on ``runner``'s workers if
+    given (the weights travel as bytes; bit-identical); ``None`` with fewer than two seeds."""
     artifacts = seed_artifacts(entry)
     if len(artifacts) < 2:
         return None
@@ -69,7 +78,16 @@ def seed_spread(
         def factory(_cell: Cell, make: Callable[[], Controller] = make) -> Controller:
             return make()
 
-        runs = evaluate_cells(factory, spec, cells, progress=progress, label=f"{entry.name} seed {seed}")
+        artifact = None if seed == 0 else (path.name, path.read_bytes())
+        runs = evaluate_cells(
+            factory,
+            spec,
+            cells,
+            progress=progress,
+            label=f"{entry.name} seed {seed}",
+            runner=runner,
+            ref=BuiltinRef(entry.name, spec.version, artifact),
+        )
         results: list[CellResult] = [run.result for run in runs]
         rates[seed] = [r.settled.rate for r in results]
         ranked = [r for r in results if r.sensor is None and r.fault_class in spec.ranked_classes]
@@ -114,15 +132,17 @@ def seeds_markdown(spec: BenchmarkSpec, spreads: list[SeedSpread]) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_seed_table(spec: BenchmarkSpec, out: Path, progress: Progress = NO_PROGRESS) -> Path:
-    """Fly every learned controller's training seeds on the board's held-out cells and write
-    ``training_seeds.md`` into ``out``."""
+def write_seed_table(
+    spec: BenchmarkSpec, out: Path, progress: Progress = NO_PROGRESS, runner: Runner | None = None
+) -> Path:
+    """Fly every learned controller's training seeds on the board's held-out cells (on ``runner``
+    if given) and write ``training_seeds.md`` into ``out``."""
     from scftc_cli.registry import registry
 
     cells = board_cells(spec)
     learned = [e for e in registry(spec.version).values() if len(seed_artifacts(e)) > 1]
     progress.add_total(sum(len(seed_artifacts(e)) for e in learned) * len(cells) * spec.steps)
-    spreads = [s for e in learned if (s := seed_spread(e, spec, cells, progress)) is not None]
+    spreads = [s for e in learned if (s := seed_spread(e, spec, cells, progress, runner)) is not None]
     out.mkdir(parents=True, exist_ok=True)
     path = out / "training_seeds.md"
     path.write_text(seeds_markdown(spec, spreads))

@@ -349,3 +349,18 @@ def test_the_study_on_the_cluster_measures_the_detector_and_draws_the_figures_as
     assert [p.name for p in here] == [p.name for p in there] and len(here) >= 10
     for a_path, b_path in zip(here, there, strict=True):
         assert a_path.read_bytes() == b_path.read_bytes(), a_path.name
+
+
+def test_training_seeds_fly_on_the_cluster_to_the_serial_bits(dask_runner):
+    """``reproduce --training-seeds`` spreads every seed's flight over the workers: a seed's weights
+    travel as bytes and give the serial rates."""
+    from scftc_cli.registry import controller_spec
+    from scftc_cli.study.seeds import seed_spread
+
+    entry = controller_spec("rma_dob")
+    cells = [Cell("test", "gain_bias")]  # where v1's rma_dob seeds differ (docs/study.md section 3)
+    serial = seed_spread(entry, V1, cells)
+    spread = seed_spread(entry, V1, cells, runner=dask_runner)
+    assert serial is not None and spread is not None and len(spread.rates) == 5
+    assert len({tuple(rates) for rates in serial.rates.values()}) > 1  # the seeds' weights differ
+    assert spread.rates == serial.rates and spread.pooled == serial.pooled
