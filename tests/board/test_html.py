@@ -23,11 +23,12 @@ from typer.testing import CliRunner
 
 from scftc_cli.board.html import board_html
 from scftc_cli.board.models import BoardEvent, Entry, Leaderboard, Round
-from scftc_cli.board.ranking import pooled_settled, rank_board
+from scftc_cli.board.ranking import pooled_settled, pooled_settled_profile_of, rank_board
 from scftc_cli.board.render import board_markdown, pooled_text
 from scftc_cli.board.rounds import commitment
 from scftc_cli.board.store import default_board_path, read_board
 from scftc_cli.commands.app import app
+from scftc_cli.scoring import settled_profile_taus
 from scftc_cli.spec import V1, get_spec
 from scftc_cli.statistics import PROFILE_TAUS_DEG, pooled_profile
 from scftc_cli.submission.manifest import parse_manifest
@@ -340,10 +341,16 @@ def test_the_profile_chart_draws_each_ranked_entrys_pooled_profile(driver: WebDr
     from selenium.webdriver.common.by import By
 
     load(driver, tmp_path, committed_page())
-    lo, hi = math.log10(PROFILE_TAUS_DEG[0]), math.log10(PROFILE_TAUS_DEG[-1])
     for version in COMMITTED:
         ranking = rank_board(read_board(default_board_path(version), version))
-        classes = get_spec(version).ranked_classes
+        spec = get_spec(version)
+        classes = spec.ranked_classes
+        # a board sealed with the ranked gate's profile draws it; an older one its final-error profile
+        gate_profile = all(
+            pooled_settled_profile_of(r.entry.sealed, classes) is not None for r in ranking.deployable
+        )
+        grid = settled_profile_taus(spec.gates) if gate_profile else PROFILE_TAUS_DEG
+        lo, hi = math.log10(grid[0]), math.log10(grid[-1])
         chart = driver.find_element(By.CSS_SELECTOR, f"figure#{version}-profile-chart")
         lines = chart.find_elements(By.CSS_SELECTOR, "svg polyline.series")
         ranked = [r.entry.name for r in ranking.deployable]
@@ -358,10 +365,14 @@ def test_the_profile_chart_draws_each_ranked_entrys_pooled_profile(driver: WebDr
             taus = 10 ** (lo + (points[:, 0] - x0) / w * (hi - lo))
             shown = 1 - (points[:, 1] - y0) / h
             cells = [c for c in r.entry.sealed if c.sensor is None and c.fault_class in classes]
-            expected = pooled_profile(
-                np.array([c.final_error_deg.profile for c in cells]), np.array([c.n for c in cells])
+            expected = (
+                pooled_settled_profile_of(r.entry.sealed, classes)
+                if gate_profile
+                else pooled_profile(
+                    np.array([c.final_error_deg.profile for c in cells]), np.array([c.n for c in cells])
+                )
             )
-            np.testing.assert_allclose(taus, PROFILE_TAUS_DEG, rtol=1e-3)
+            np.testing.assert_allclose(taus, grid, rtol=1e-3)
             np.testing.assert_allclose(shown, expected, atol=1e-3)
         assert "docs/statistics.md" in chart.find_element(By.XPATH, "..").text  # the how-to-read note
         # hovering a name in the legend picks out its line
