@@ -83,11 +83,8 @@ def submit_command(
     from scftc_cli.errors import UsageError
     from scftc_cli.render import pct
     from scftc_cli.spec import get_spec
-    from scftc_cli.versions import check_accepts_entries
 
     spec = get_spec(benchmark_of(benchmark, file))
-    if not dry_run:
-        check_accepts_entries(spec.version)
     if not dry_run and (n_faults is not None or n_seeds is not None):
         raise UsageError("--n-faults and --n-seeds are for --dry-run only: a board holds full-size entries")
     if seal and dry_run:

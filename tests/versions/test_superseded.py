@@ -49,7 +49,7 @@ def test_a_superseded_board_lands_no_submission(tmp_path: Path):
     before = board.read_bytes()
     result = runner.invoke(
         app,
-        ["submit", str(EXAMPLE), "--benchmark", "scftc-v3", "--leaderboard", str(board), "--n-faults", "1"],
+        ["submit", str(EXAMPLE), "--benchmark", "scftc-v3", "--leaderboard", str(board)],
     )
     assert result.exit_code != 0 and "superseded by scftc-v4" in result.output, result.output
     assert board.read_bytes() == before
