@@ -179,7 +179,11 @@ def test_exp_is_faithful_where_the_result_is_subnormal():
 
 def test_cosine_sine_is_cosine_and_sine_to_the_bit() -> None:
     x = np.concatenate(
-        [RNG.uniform(-50.0, 50.0, 20_000), [0.0, -0.0, 1e-300, -5e-324, 2.0**20, 2.0**21, np.nan, np.inf]]
+        [
+            RNG.uniform(-50.0, 50.0, 20_000),
+            RNG.uniform(-(2.0**20), 2.0**20, 3_992),  # every quadrant, far from zero
+            [0.0, -0.0, 1e-300, -5e-324, 2.0**20, 2.0**21, np.nan, np.inf],
+        ]
     ).reshape(4, -1)
     c, s = cosine_sine(x)
     assert c.shape == s.shape == x.shape
