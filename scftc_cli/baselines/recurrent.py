@@ -125,12 +125,34 @@ def _float_from_bits(typingctx, bits):
     return sig, codegen
 
 
+@intrinsic
+def _bits_from_float(typingctx, x):
+    """The int64 whose bits are those of the float64 ``x`` (a plain bit cast)."""
+    if not isinstance(x, types.Float):
+        return None
+    sig = types.int64(types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+_SHIFT_BITS = int(np.float64(_SHIFT).view(np.int64))
+
+
 @numba.njit(error_model="numpy")
 def _reduce(x):
     """``(2^n, e^r - 1)`` with ``x = n ln2 + r``, ``|r| <= ln2 / 2`` (Cody-Waite, ``ln2`` in two
     parts; ``x`` within [-708, 709]), ``e^r - 1`` by its Taylor polynomial to ``r^13`` (remainder
-    < 5e-18 relative) and ``2^n`` built from its bits."""
-    n = (x * _INV_LN2 + _SHIFT) - _SHIFT
+    < 5e-18 relative) and ``2^n`` built from its bits.
+
+    ``n`` is read off the bits of ``x / ln2 + _SHIFT``, whose last bits hold it as an integer
+    (``_SHIFT`` = 1.5 * 2^52 fixes the exponent), instead of converting the float ``n`` to an
+    integer: the same ``2^n``, with integer operations LLVM vectorizes on every x86-64 (a float to
+    int64 conversion vectorizes only with AVX-512DQ)."""
+    shifted = x * _INV_LN2 + _SHIFT
+    n = shifted - _SHIFT
     r = (x - n * _LN2_HI) - n * _LN2_LO
     q = 1.6059043836821613e-10  # 1/13!
     q = q * r + 2.08767569878681e-09
@@ -145,7 +167,7 @@ def _reduce(x):
     q = q * r + 0.16666666666666666
     q = q * r + 0.5
     q = q * r + 1.0
-    return _float_from_bits(np.int64(n + 1023.0) << 52), q * r  # type: ignore[call-arg]
+    return _float_from_bits((_bits_from_float(shifted) - _SHIFT_BITS + 1023) << 52), q * r  # type: ignore[call-arg]
 
 
 @numba.njit(error_model="numpy")
