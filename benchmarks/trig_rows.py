@@ -4,12 +4,13 @@ Run: ``python benchmarks/trig_rows.py [--rows 4500] [--calls 400] [--repeats 5]`
 
 Every v3/v4 plant step takes ``(cos u, sin u)`` of each episode's argument of latitude
 (``environment.latitude_trig``) from the project's double-double functions (``sim/elementary``).
-``cosine_sine`` computes both in one loop over rows written without a branch and with the series
-written out, so that LLVM vectorizes it; ``cosine`` runs the scalar ``cos`` (a branch per
-argument, the series as a loop) over the same rows: the reference, in the same run, for one
-output instead of two. Reports the fastest ns per row of each over the repeats and their ratio,
-and checks that both give the cosine's bits. Arguments as a mission's: ``u0 + n t`` over a
-45-minute flight of a 95-minute orbit. One numba thread (as a Dask worker flies).
+``cosine_sine`` computes both in one loop over rows without a branch, which LLVM vectorizes;
+``cosine`` calls the scalar ``cos`` once per row from a loop that picks the function per element
+(``_unary_rows``, with ``cos``'s range and zero checks as branches), which stays scalar: the
+reference, in the same run, for one output instead of two. Reports the fastest ns per row of
+each over the repeats and their ratio, and checks that both give the cosine's bits. Arguments as
+a mission's: ``u0 + n t`` over a 45-minute flight of a 95-minute orbit. One numba thread (as a
+Dask worker flies).
 """
 
 from __future__ import annotations

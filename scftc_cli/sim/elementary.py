@@ -255,7 +255,8 @@ def acos(x):  # pragma: no cover - compiled
 @numba.njit(inline="always")
 def _reduce(x):  # pragma: no cover - compiled
     """``x = k pi/2 + r`` with ``|r| <= pi/4`` about: ``(k mod 4, r_hi, r_lo)``, ``r`` from ``pi/2``
-    in three parts, each product exact (``fma``)."""
+    in three parts, each product exact (``fma``). The quadrant ``k mod 4`` stays a float (0., 1.,
+    2. or 3.): no conversion to an integer, so that ``_cos_sin_rows``' loop vectorizes."""
     k = np.floor(x * (2.0 / _PI_HI) + 0.5)
     rh, rl = x, 0.0
     for part in (_PIO2_1, _PIO2_2):
@@ -263,7 +264,7 @@ def _reduce(x):  # pragma: no cover - compiled
         e = fma(k, part, -p)  # type: ignore[call-arg,var-annotated]
         rh, rl = _dd_add(rh, rl, -p, -e)
     rh, rl = _dd_add(rh, rl, -k * _PIO2_3, 0.0)
-    return int(k - 4.0 * np.floor(k / 4.0)), rh, rl
+    return k - 4.0 * np.floor(k / 4.0), rh, rl
 
 
 @numba.njit
@@ -315,17 +316,14 @@ _TRIG_LIMIT = 2.0**20
 
 
 @numba.njit(inline="always")
-def _sine_in_quadrant(quadrant, sh, sl, ch, cl):  # pragma: no cover - compiled
+def _sine_in_quadrant(q, sh, sl, ch, cl):  # pragma: no cover - compiled
     """``sin(q pi/2 + r)`` rounded once, from ``sin r`` and ``cos r`` as double-doubles: ``sin r``,
-    ``cos r``, ``-sin r``, ``-cos r`` for ``q`` = 0, 1, 2, 3 (mod 4)."""
-    q = quadrant % 4
-    if q == 0:
-        return sh + sl
-    if q == 1:
-        return ch + cl
-    if q == 2:
-        return -(sh + sl)
-    return -(ch + cl)
+    ``cos r``, ``-sin r``, ``-cos r`` for the float ``q`` = 0, 1, 2, 3, and ``sin r`` again for 4
+    (a cosine's quadrant, one on). Selects, not branches, so that a loop over rows vectorizes."""
+    s, c = sh + sl, ch + cl
+    v = s if q == 0.0 or q == 4.0 else c
+    v = -s if q == 2.0 else v
+    return -c if q == 3.0 else v
 
 
 @numba.njit
@@ -347,7 +345,7 @@ def cos(x):  # pragma: no cover - compiled
         return np.nan
     quadrant, rh, rl = _reduce(x)
     sh, sl, ch, cl = _sin_cos_dd(rh, rl)
-    return _sine_in_quadrant(quadrant + 1, sh, sl, ch, cl)
+    return _sine_in_quadrant(quadrant + 1.0, sh, sl, ch, cl)
 
 
 @numba.njit
@@ -360,7 +358,7 @@ def tan(x):  # pragma: no cover - compiled
         return x
     quadrant, rh, rl = _reduce(x)
     sh, sl, ch, cl = _sin_cos_dd(rh, rl)
-    if quadrant % 2 == 0:
+    if quadrant == 0.0 or quadrant == 2.0:
         th, tl = _dd_div(sh, sl, ch, cl)
     else:
         th, tl = _dd_div(-ch, -cl, sh, sl)
@@ -548,16 +546,6 @@ def _atan2_rows(y, x, out):  # pragma: no cover - compiled
         out[i] = atan2(y[i], x[i])
 
 
-@numba.njit(inline="always")
-def _in_quadrant(q, sh, sl, ch, cl):  # pragma: no cover - compiled
-    """``_sine_in_quadrant`` for a quadrant ``q`` held as a float in {0, 1, 2, 3}, by selects
-    (no branch, so that the loop over rows vectorizes)."""
-    s, c = sh + sl, ch + cl
-    v = s if q == 0.0 else c
-    v = -s if q == 2.0 else v
-    return -c if q == 3.0 else v
-
-
 @numba.njit(cache=True, parallel=True)
 def _cos_sin_rows(x, out_cos, out_sin):  # pragma: no cover - compiled
     """``cos`` and ``sin`` of every ``x[i]``: ``cos``'s and ``sin``'s operations, without a branch
@@ -566,17 +554,10 @@ def _cos_sin_rows(x, out_cos, out_sin):  # pragma: no cover - compiled
     for i in numba.prange(x.size):
         v = x[i]
         ok = abs(v) <= _TRIG_LIMIT
-        k = np.floor((v if ok else 0.0) * (2.0 / _PI_HI) + 0.5)
-        rh, rl = v if ok else 0.0, 0.0
-        for part in (_PIO2_1, _PIO2_2):
-            p = k * part
-            e = fma(k, part, -p)  # type: ignore[call-arg,var-annotated]
-            rh, rl = _dd_add(rh, rl, -p, -e)
-        rh, rl = _dd_add(rh, rl, -k * _PIO2_3, 0.0)
-        q = k - 4.0 * np.floor(k / 4.0)
+        q, rh, rl = _reduce(v if ok else 0.0)
         sh, sl, ch, cl = _sin_cos_dd(rh, rl)
-        out_cos[i] = _in_quadrant(0.0 if q == 3.0 else q + 1.0, sh, sl, ch, cl) if ok else np.nan
-        out_sin[i] = v if v == 0.0 else (_in_quadrant(q, sh, sl, ch, cl) if ok else np.nan)
+        out_cos[i] = _sine_in_quadrant(q + 1.0, sh, sl, ch, cl) if ok else np.nan
+        out_sin[i] = v if v == 0.0 else (_sine_in_quadrant(q, sh, sl, ch, cl) if ok else np.nan)
 
 
 def _unary(which: int, x: np.ndarray | float) -> np.ndarray:
